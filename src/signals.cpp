@@ -1,0 +1,319 @@
+// Signal conditioning: see signals.hpp for the rules and estimators.
+#include "friction/signals.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "friction/error.hpp"
+
+namespace friction {
+namespace {
+
+// Quantile by partial sort of a copy; p in [0, 1], nearest-rank below.
+double quantile(std::vector<double> v, double p) {
+  if (v.empty()) return 0.0;
+  const auto k = static_cast<std::size_t>(p * static_cast<double>(v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const std::size_t n = v.size();
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(n / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  if (n % 2 == 1) return *mid;
+  const double upper = *mid;
+  const double lower = *std::max_element(v.begin(), mid);
+  return 0.5 * (lower + upper);
+}
+
+// 1.4826 * median absolute deviation: the standard deviation of normal data, robustly.
+double robust_spread(const std::vector<double>& v) {
+  if (v.empty()) return 0.0;
+  const double m = median(v);
+  std::vector<double> dev(v.size());
+  std::transform(v.begin(), v.end(), dev.begin(), [m](double a) { return std::abs(a - m); });
+  return 1.4826 * median(std::move(dev));
+}
+
+std::string number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+}  // namespace
+
+const char* to_string(ForceSign s) noexcept {
+  switch (s) {
+    case ForceSign::positive:
+      return "+1";
+    case ForceSign::negative:
+      return "-1";
+    case ForceSign::automatic:
+      break;
+  }
+  return "auto";
+}
+
+SamplingReport analyse_sampling(std::span<const double> time, double tolerance,
+                                const std::string& source, long first_line) {
+  const auto line = [first_line](std::size_t k) {
+    return first_line > 0 ? first_line + static_cast<long>(k) : 0L;
+  };
+  FRICTION_CHECK(std::isfinite(tolerance) && tolerance >= 0.0,
+                 "sampling tolerance must be finite and >= 0, got ", tolerance);
+  if (time.size() < 2)
+    throw DataError(
+        source, 0, 0,
+        "need at least 2 samples to analyse sampling, got " + std::to_string(time.size()));
+  std::vector<double> dt(time.size() - 1);
+  for (std::size_t k = 0; k < time.size(); ++k) {
+    if (!std::isfinite(time[k]))
+      throw DataError(source, line(k), 0, "time of sample " + std::to_string(k) + " is not finite");
+    if (k == 0) continue;
+    const double d = time[k] - time[k - 1];
+    if (!(d > 0.0))
+      throw DataError(source, line(k), 0,
+                      "time " + number(time[k]) + " s is not greater than the previous " +
+                          number(time[k - 1]) + " s: time must be strictly increasing");
+    dt[k - 1] = d;
+  }
+  SamplingReport r;
+  r.tolerance = tolerance;
+  r.nominal_period = median(dt);
+  const auto [lo, hi] = std::minmax_element(dt.begin(), dt.end());
+  r.min_period = *lo;
+  r.max_period = *hi;
+  for (std::size_t i = 0; i < dt.size(); ++i)
+    if (std::abs(dt[i] - r.nominal_period) > tolerance * r.nominal_period)
+      r.gaps.push_back({i + 1, dt[i]});
+  return r;
+}
+
+std::string describe_sampling(const SamplingReport& report, std::size_t intervals) {
+  if (!report.irregular()) return {};
+  // Group the gap lengths: sorted, a new group whenever the next length differs from the group's
+  // first by more than the tolerance (so 10 ms +- float noise is one group).
+  std::vector<double> sizes;
+  sizes.reserve(report.gaps.size());
+  for (const auto& g : report.gaps) sizes.push_back(g.dt);
+  std::sort(sizes.begin(), sizes.end());
+  struct Group {
+    double first, sum;
+    std::size_t count;
+  };
+  std::vector<Group> groups;
+  const double tol = std::max(report.tolerance, 1e-9) * report.nominal_period;
+  for (double s : sizes) {
+    if (groups.empty() || s - groups.back().first > tol) groups.push_back({s, 0.0, 0});
+    groups.back().sum += s;
+    ++groups.back().count;
+  }
+  std::sort(groups.begin(), groups.end(),
+            [](const Group& a, const Group& b) { return a.count > b.count; });
+  std::ostringstream s;
+  s << "irregular sampling: " << report.gaps.size() << " of " << intervals
+    << " intervals differ from the nominal period " << number(report.nominal_period)
+    << " s by more than " << number(100.0 * report.tolerance) << " % (";
+  const std::size_t shown = std::min<std::size_t>(groups.size(), 6);
+  for (std::size_t i = 0; i < shown; ++i) {
+    if (i > 0) s << ", ";
+    s << groups[i].count << " x " << number(groups[i].sum / static_cast<double>(groups[i].count))
+      << " s";
+  }
+  if (shown < groups.size()) s << ", ...";
+  s << "); samples kept as they are, the models step with each interval's own length";
+  return s.str();
+}
+
+ForceSignEstimate estimate_force_sign(std::span<const double> time,
+                                      std::span<const double> displacement,
+                                      std::span<const double> force) {
+  ForceSignEstimate e;
+  const std::size_t n = std::min({time.size(), displacement.size(), force.size()});
+  constexpr std::size_t h = 2;     // half-width of the centred difference
+  constexpr std::size_t kMin = 5;  // sliding samples needed per direction used
+  if (n < 2 * h + 1) return e;
+  std::vector<double> v(n - 2 * h);
+  for (std::size_t k = h; k + h < n; ++k)
+    v[k - h] = (displacement[k + h] - displacement[k - h]) / (time[k + h] - time[k - h]);
+  std::vector<double> speed(v.size());
+  std::transform(v.begin(), v.end(), speed.begin(), [](double a) { return std::abs(a); });
+  const double threshold = 0.2 * quantile(std::move(speed), 0.98);
+  e.sliding_velocity = threshold;
+  if (!(threshold > 0.0)) return e;
+
+  std::vector<double> up, down, signed_force;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    const double f = force[i + h];
+    if (v[i] > threshold) {
+      up.push_back(f);
+      signed_force.push_back(f);
+    } else if (v[i] < -threshold) {
+      down.push_back(f);
+      signed_force.push_back(-f);
+    }
+  }
+  e.sliding_samples = signed_force.size();
+  constexpr double kMedianEfficiency = 1.2533;  // sd(median) / sd(mean) for normal data
+  if (up.size() >= kMin && down.size() >= kMin) {
+    e.both_directions = true;
+    const double su = robust_spread(up), sd = robust_spread(down);
+    e.difference = median(up) - median(down);
+    e.standard_error = kMedianEfficiency * std::sqrt(su * su / static_cast<double>(up.size()) +
+                                                     sd * sd / static_cast<double>(down.size()));
+  } else if (signed_force.size() >= kMin) {
+    const double s = robust_spread(signed_force);
+    e.difference = median(signed_force);
+    e.standard_error = kMedianEfficiency * s / std::sqrt(static_cast<double>(signed_force.size()));
+  } else {
+    return e;
+  }
+  if (e.difference != 0.0 && std::abs(e.difference) > 4.0 * e.standard_error) {
+    e.decided = true;
+    e.sign = e.difference > 0.0 ? 1 : -1;
+  }
+  return e;
+}
+
+std::optional<double> signal_quantum(std::span<const double> signal) {
+  std::vector<double> d;
+  d.reserve(signal.size());
+  for (std::size_t k = 1; k < signal.size(); ++k) {
+    const double s = std::abs(signal[k] - signal[k - 1]);
+    if (s > 0.0 && std::isfinite(s)) d.push_back(s);
+  }
+  if (d.size() < 10) return std::nullopt;
+  std::sort(d.begin(), d.end());
+  // q0: the smallest step that recurs (clusters of steps equal to within 1e-6 relative, which
+  // absorbs the binary representation of decimal data).
+  const std::size_t support = std::max<std::size_t>(3, d.size() / 1000);
+  double q0 = 0.0;
+  for (std::size_t i = 0; i < d.size();) {
+    std::size_t j = i;
+    while (j < d.size() && d[j] - d[i] <= 1e-6 * d[i]) ++j;
+    if (j - i >= support) {
+      q0 = d[i + (j - i) / 2];
+      break;
+    }
+    i = j;
+  }
+  if (!(q0 > 0.0)) return std::nullopt;
+  for (int m = 1; m <= 64; ++m) {
+    const double q = q0 / m;
+    std::vector<double> unit;
+    unit.reserve(d.size());
+    for (double s : d) {
+      const double r = s / q;
+      const double nearest = std::round(r);
+      if (nearest >= 1.0 && std::abs(r - nearest) <= 0.02) unit.push_back(s / nearest);
+    }
+    if (static_cast<double>(unit.size()) >= 0.9 * static_cast<double>(d.size()))
+      return median(std::move(unit));
+  }
+  return std::nullopt;
+}
+
+double noise_level(std::span<const double> signal) {
+  if (signal.size() < 3) return 0.0;
+  std::vector<double> d2(signal.size() - 2);
+  for (std::size_t k = 1; k + 1 < signal.size(); ++k)
+    d2[k - 1] = signal[k + 1] - 2.0 * signal[k] + signal[k - 1];
+  return robust_spread(d2) / std::sqrt(6.0);
+}
+
+Resolution estimate_displacement_resolution(std::span<const double> displacement) {
+  Resolution r;
+  r.quantum = signal_quantum(displacement);
+  r.noise = noise_level(displacement);
+  r.value = std::max(r.quantum.value_or(0.0), r.noise);
+  return r;
+}
+
+double estimate_force_noise(std::span<const double> force) {
+  const double s = noise_level(force);
+  if (s > 0.0) return s;
+  const auto q = signal_quantum(force);
+  return q ? *q / std::sqrt(12.0) : 0.0;
+}
+
+const Conditioning& condition_record(Record& record, const ConditioningOptions& options) {
+  const std::size_t n = record.size();
+  const std::string& src = record.source;
+  const auto check_size = [&](const std::vector<double>& v, const char* what, bool optional) {
+    if (v.size() != n && !(optional && v.empty()))
+      throw DataError(src, 0, 0,
+                      std::string(what) + " has " + std::to_string(v.size()) +
+                          " samples but time has " + std::to_string(n));
+  };
+  check_size(record.displacement, "displacement", false);
+  check_size(record.force, "force", true);
+  check_size(record.normal, "normal force", true);
+  const auto check_finite = [&](const std::vector<double>& v, const char* what) {
+    for (std::size_t k = 0; k < v.size(); ++k)
+      if (!std::isfinite(v[k]))
+        throw DataError(src, record.line_of(k), 0,
+                        std::string(what) + " of sample " + std::to_string(k) +
+                            " is not finite: expected a finite number");
+  };
+  check_finite(record.displacement, "displacement");
+  check_finite(record.force, "force");
+  check_finite(record.normal, "normal force");
+
+  Conditioning c;
+  const SamplingReport sampling =
+      analyse_sampling(record.time, options.period_tolerance, src, record.first_line);
+  c.nominal_period = sampling.nominal_period;
+  c.min_period = sampling.min_period;
+  c.max_period = sampling.max_period;
+  c.period_tolerance = sampling.tolerance;
+  c.gaps = sampling.gaps;
+  c.irregular = sampling.irregular();
+
+  if (record.has_force()) {
+    const ForceSignEstimate est =
+        estimate_force_sign(record.time, record.displacement, record.force);
+    c.sliding_samples = est.sliding_samples;
+    c.sliding_velocity = est.sliding_velocity;
+    if (options.force_sign == ForceSign::automatic) {
+      c.force_sign_decided = est.decided;
+      c.force_sign = est.decided ? est.sign : 1;
+      if (!est.decided)
+        c.warnings.push_back("force_sign: +1 kept: the sign of the force could not be detected (" +
+                             (est.sliding_samples == 0 ? std::string("no sliding motion")
+                                                       : "sliding force " + number(est.difference) +
+                                                             " N is within the noise") +
+                             "); set it with --force-sign if it opposes the motion");
+      else if (c.force_sign < 0)
+        c.warnings.push_back(
+            "force_sign: -1: the recorded force opposes the motion while sliding (F*v < 0), as "
+            "the force on the moving body does; it was flipped to the models' convention "
+            "(--force-sign +1 keeps it as recorded)");
+    } else {
+      c.force_sign_given = true;
+      c.force_sign = options.force_sign == ForceSign::negative ? -1 : 1;
+      if (est.decided && est.sign != c.force_sign)
+        c.warnings.push_back(std::string("force_sign: ") + to_string(options.force_sign) +
+                             " as given, although the data suggest " +
+                             (est.sign > 0 ? "+1" : "-1") +
+                             " (F*v while sliding has the other sign)");
+    }
+    if (c.force_sign < 0)
+      for (double& f : record.force) f = -f;
+    c.force_noise = estimate_force_noise(record.force);
+  }
+
+  const Resolution res = estimate_displacement_resolution(record.displacement);
+  c.displacement_resolution = res.value;
+  c.displacement_quantised = res.quantum.has_value();
+
+  if (c.irregular) c.warnings.push_back(describe_sampling(sampling, n - 1));
+  record.conditioning = std::move(c);
+  return record.conditioning;
+}
+
+}  // namespace friction
