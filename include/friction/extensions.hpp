@@ -1,0 +1,692 @@
+// Extension terms of methods.md section 7, as pieces that wrap any base friction model.
+//
+// A record with no hidden effect is a Maxwell Slip system; each effect of section 7 is added on top
+// of a base model (MaxwellSlip, Dnlrx, Gms, LuGre, StaticFriction, ...) by `Extended<Base>`, whose
+// parameters `ExtensionParameters<T>` hold one optional piece per effect, named as in section 7.
+// Pieces are independent and compose: any subset may be enabled.
+//
+// Two kinds of pieces (section 7):
+//   * level effects scale the base's slip forces through `Motion::level` (thresholds Delta_i in
+//     Maxwell Slip and DNLRX, s(v) in LuGre, alpha_i g(v) in GMS, g(v) in the static curve).  An
+//     added term would make the force jump at every reversal; a scaled slip force does not, because
+//     in presliding the operators are inside their thresholds and do not feel the level.  The level
+//     passed to the base is the product
+//         L = level_in * L_stribeck * L_asymmetry * L_position * L_drift * L_normal
+//     floored at kMinimumLevel so that the base never sees a non-positive slip force;
+//   * added terms (viscous, offset, inertia) are summed to the base's force.
+//
+// F0 is the reference force: the base's nominal sliding level (MaxwellSlip sum k_i Delta_i, DNLRX
+// sum theta_{i,j} Delta_i, GMS / LuGre / static Fc), taken from the base's parameters unless
+// `reference_force` is given.  The pieces, with v_l the (possibly lagged) velocity:
+//
+//   viscous              + sigma2 v_l                                    `viscous` [N s/m]
+//   stribeck             L *= 1 + (Fs/F0 - 1) exp(-(|v_l|/vs)^q)         `static` [N] (the force
+//                        at rest: Fs relative to the base's F0), `stribeck_velocity` [m/s],
+//                        `stribeck_exponent` [-]; the curve g(v)/F0 of section 5 (stribeck.hpp)
+//   frictional-lag       v_l follows v through a first-order lag, dv_l/dt = (v - v_l)/tau,
+//                        `lag_time` tau [s]; it feeds the stribeck and viscous pieces (without one
+//                        of them it has no effect).  Exact for piecewise-constant v:
+//                        v_l+ = v + (v_l - v) exp(-dt/tau).  The lag starts at the first moving
+//                        interval's velocity (as if that motion had been going on: records are
+//                        cut from longer motion; initial states are estimated, methods.md 2)
+//   asymmetry            L *= 1 + a d,  `asymmetry` a = (F+ - F-)/(F+ + F-) in (-1, 1)
+//   offset               + c                                             `offset` [N]
+//   inertia              + m a                                           `mass` [kg]
+//   position-dependence  L *= 1 + (A/F0) sin(2 pi x / lambda + phi)      `amplitude` A [N],
+//                        `wavelength` lambda [m], `phase` phi [rad]; x is the absolute position
+//   drift                L *= 1 + r t, t the time since the record's start  `relative_rate` [1/s]
+//   delay                the force lags the displacement by D: the base and every piece see the
+//                        motion at t - D (the normal force and time t are not shifted)  `delay` [s]
+//   normal-load          L *= mu N(t) / F0, i.e. N(t)/N_ref with N_ref = F0/mu
+//                        `friction_coefficient` mu = F0/N_ref [-]; factor 1 when no normal force
+//
+// Asymmetry: the direction d.  Levels (1+a) F0 and (1-a) F0 in + and - sliding, presliding
+// centred.  Switching the level with sgn(v) at a reversal would clamp every operator sitting at its
+// threshold to the new threshold, a jump of 2 a F0 exactly where presliding starts; holding the
+// sign of the last sliding direction and switching when sliding starts the other way moves the
+// same jump to the start of the slide.  So the direction indicator is continuous: d is the base's
+// own force normalised by its sliding level at the previous sample,
+//     d(t) = clamp(F_base(t-1) / (L(t-1) F0), -1, 1),
+// which is +1 / -1 while sliding in +x / -x (the base force is L F0 there) and travels between
+// them through presliding, together with the force.  The sign of the last slide is thus held
+// through presliding (d keeps it until the force has crossed zero) and the level changes gradually,
+// so there is no jump; from the virgin state d = 0 and small presliding loops are centred.  Bases
+// whose sliding force exceeds L F0 (viscous, Stribeck peak) saturate the clamp, which keeps d = +-1
+// in sliding.  For the stateless static curve d is sgn(v) of the previous sample.
+//
+// Differentiators.  Per sample, the caller provides the context (`ExtendedMotion`); `step(Motion)`
+// (the FrictionModel interface, used by `simulate`) builds it: x and t accumulate the increments
+// from 0 at reset, and the acceleration is the backward second difference
+//     a_k = (v_k - v_{k-1}) / ((dt_k + dt_{k-1}) / 2),   v_k = dx_k / dt_k,
+// which is causal but estimates a at t_{k-1} (one sample late; 0 for the first interval).  On a
+// record, `simulate_extended` uses the central second difference of the piecewise-linear record
+//     a_k = (v_{k+1} - v_k) / ((dt_{k+1} + dt_k) / 2),
+// second-order accurate at t_k for uniform sampling (a_0 = a_1 and a_{N-1} = a_{N-2} at the ends).
+// It amplifies displacement noise s_x to about 2 s_x / Ts^2 (uniform Ts): fit `mass` on records
+// whose accelerations dominate that.
+//
+// Delay.  On a record the displacement at t_k - D is interpolated linearly between samples (held at
+// the first / last sample outside the record), for either sign of D; velocity and acceleration are
+// then differentiated from the shifted record.  Per sample (causal, D >= 0 only; a negative delay
+// is ignored there) a ring of the last `delay_capacity` samples (allocated at construction) gives
+// the same interpolation of x and of the provided acceleration; a delay longer than the ring holds
+// the oldest sample.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <optional>
+#include <span>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "friction/error.hpp"
+#include "friction/model_concept.hpp"
+#include "friction/motion.hpp"
+#include "friction/scalar.hpp"
+#include "friction/stribeck.hpp"
+
+namespace friction {
+
+/// The extension pieces, one per effect of methods.md section 7 (`nonlocal-memory` is a number
+/// of Maxwell Slip elements, not a piece).
+enum class Effect {
+  viscous,
+  stribeck,
+  frictional_lag,
+  asymmetry,
+  offset,
+  inertia,
+  position_dependence,
+  drift,
+  delay,
+  normal_load,
+};
+
+inline constexpr std::array<Effect, 10> kAllEffects = {
+    Effect::viscous, Effect::stribeck,   Effect::frictional_lag,      Effect::asymmetry,
+    Effect::offset,  Effect::inertia,    Effect::position_dependence, Effect::drift,
+    Effect::delay,   Effect::normal_load};
+
+/// The fixed name of methods.md section 7 ("frictional-lag", "position-dependence", ...).
+constexpr std::string_view effect_name(Effect e) noexcept {
+  switch (e) {
+    case Effect::viscous:
+      return "viscous";
+    case Effect::stribeck:
+      return "stribeck";
+    case Effect::frictional_lag:
+      return "frictional-lag";
+    case Effect::asymmetry:
+      return "asymmetry";
+    case Effect::offset:
+      return "offset";
+    case Effect::inertia:
+      return "inertia";
+    case Effect::position_dependence:
+      return "position-dependence";
+    case Effect::drift:
+      return "drift";
+    case Effect::delay:
+      return "delay";
+    case Effect::normal_load:
+      return "normal-load";
+  }
+  return "";
+}
+
+/// The effect of a section 7 name; nullopt for unknown names (and for "nonlocal-memory").
+constexpr std::optional<Effect> effect_from_name(std::string_view name) noexcept {
+  for (Effect e : kAllEffects)
+    if (effect_name(e) == name) return e;
+  return std::nullopt;
+}
+
+/// True for the pieces that scale the slip forces (through Motion::level).
+constexpr bool is_level_effect(Effect e) noexcept {
+  return e == Effect::stribeck || e == Effect::asymmetry || e == Effect::position_dependence ||
+         e == Effect::drift || e == Effect::normal_load;
+}
+
+// The pieces' parameters.  Member names are methods.md section 7's (`static` -> static_force).
+
+template <typename T>
+struct ViscousExtension {
+  T viscous{0};  ///< sigma2 [N s/m], >= 0
+};
+template <typename T>
+struct StribeckExtension {
+  T static_force{0};          ///< "static": the force at rest [N], > 0 (vs the base's F0)
+  T stribeck_velocity{1e-3};  ///< vs [m/s], > 0
+  T stribeck_exponent{2.0};   ///< q [-], > 0
+};
+template <typename T>
+struct FrictionalLagExtension {
+  T lag_time{0};  ///< tau [s], >= 0 (0: no lag)
+};
+template <typename T>
+struct AsymmetryExtension {
+  T asymmetry{0};  ///< a = (F+ - F-)/(F+ + F-), in (-1, 1)
+};
+template <typename T>
+struct OffsetExtension {
+  T offset{0};  ///< c [N]
+};
+template <typename T>
+struct InertiaExtension {
+  T mass{0};  ///< m [kg], >= 0
+};
+template <typename T>
+struct PositionExtension {
+  T amplitude{0};   ///< A [N], |A| < F0
+  T wavelength{1};  ///< lambda [m], > 0
+  T phase{0};       ///< phi [rad]
+};
+template <typename T>
+struct DriftExtension {
+  T relative_rate{0};  ///< r [1/s]
+};
+template <typename T>
+struct DelayExtension {
+  T delay{0};  ///< D [s], > 0 when the force lags the displacement
+};
+template <typename T>
+struct NormalLoadExtension {
+  T friction_coefficient{1};  ///< mu = F0 / N_ref [-], > 0
+};
+
+/// The enabled extension pieces and their parameters.
+template <typename T>
+struct ExtensionParameters {
+  std::optional<ViscousExtension<T>> viscous;
+  std::optional<StribeckExtension<T>> stribeck;
+  std::optional<FrictionalLagExtension<T>> frictional_lag;
+  std::optional<AsymmetryExtension<T>> asymmetry;
+  std::optional<OffsetExtension<T>> offset;
+  std::optional<InertiaExtension<T>> inertia;
+  std::optional<PositionExtension<T>> position_dependence;
+  std::optional<DriftExtension<T>> drift;
+  std::optional<DelayExtension<T>> delay;
+  std::optional<NormalLoadExtension<T>> normal_load;
+  /// F0 [N], the base's sliding level that `static`, `amplitude` and `friction_coefficient` refer
+  /// to; 0 takes it from the base's parameters (see Extended).
+  T reference_force{0};
+
+  bool has(Effect e) const noexcept {
+    bool on = false;
+    visit_piece(*this, e, [&](const auto& piece) { on = piece.has_value(); });
+    return on;
+  }
+  /// Enables a piece with its default parameters (no-op when already enabled).
+  void enable(Effect e) {
+    visit_piece(*this, e, [](auto& piece) {
+      if (!piece) piece.emplace();
+    });
+  }
+  void disable(Effect e) {
+    visit_piece(*this, e, [](auto& piece) { piece.reset(); });
+  }
+  bool empty() const noexcept {
+    for (Effect e : kAllEffects)
+      if (has(e)) return false;
+    return true;
+  }
+
+  /// Calls f(Effect, std::string_view name, T& value) for every parameter of every enabled piece,
+  /// in the order of kAllEffects and then of the members; names are methods.md section 7's.
+  template <class F>
+  void for_each_parameter(F&& f) {
+    for_each_parameter_impl(*this, f);
+  }
+  template <class F>
+  void for_each_parameter(F&& f) const {
+    for_each_parameter_impl(*this, f);
+  }
+
+  /// Number of parameters of the enabled pieces.
+  std::size_t parameter_count() const {
+    std::size_t n = 0;
+    for_each_parameter([&](Effect, std::string_view, const T&) { ++n; });
+    return n;
+  }
+
+  /// The same pieces with every value converted by `convert` (e.g. double -> Jet).
+  template <typename U, class Convert>
+  ExtensionParameters<U> cast(Convert&& convert) const {
+    ExtensionParameters<U> out;
+    for (Effect e : kAllEffects)
+      if (has(e)) out.enable(e);
+    std::vector<U*> targets;
+    out.for_each_parameter([&](Effect, std::string_view, U& v) { targets.push_back(&v); });
+    std::size_t k = 0;
+    for_each_parameter([&](Effect, std::string_view, const T& v) { *targets[k++] = convert(v); });
+    out.reference_force = convert(reference_force);
+    return out;
+  }
+
+  /// Throws InvalidParameter for values outside each piece's domain (see the members).  Checks that
+  /// need F0 (|amplitude| < F0) are made by Extended.
+  void validate() const {
+    auto finite = [](const T& v) { return std::isfinite(value_of(v)); };
+    for_each_parameter([&](Effect e, std::string_view name, const T& v) {
+      FRICTION_CHECK(finite(v), "extension ", effect_name(e), ": ", name, " is not finite");
+    });
+    const double f0 = value_of(reference_force);
+    FRICTION_CHECK(std::isfinite(f0) && f0 >= 0.0, "extensions: reference_force = ", f0,
+                   " N must be finite and >= 0 (0: the base's sliding force)");
+    if (viscous)
+      FRICTION_CHECK(value_of(viscous->viscous) >= 0.0,
+                     "extension viscous: viscous = ", value_of(viscous->viscous),
+                     " N s/m must be >= 0");
+    if (stribeck) {
+      FRICTION_CHECK(value_of(stribeck->static_force) > 0.0,
+                     "extension stribeck: static = ", value_of(stribeck->static_force),
+                     " N must be > 0");
+      FRICTION_CHECK(value_of(stribeck->stribeck_velocity) > 0.0,
+                     "extension stribeck: stribeck_velocity must be > 0");
+      FRICTION_CHECK(value_of(stribeck->stribeck_exponent) > 0.0,
+                     "extension stribeck: stribeck_exponent must be > 0");
+    }
+    if (frictional_lag)
+      FRICTION_CHECK(value_of(frictional_lag->lag_time) >= 0.0,
+                     "extension frictional-lag: lag_time = ", value_of(frictional_lag->lag_time),
+                     " s must be >= 0");
+    if (asymmetry)
+      FRICTION_CHECK(std::abs(value_of(asymmetry->asymmetry)) < 1.0,
+                     "extension asymmetry: asymmetry = ", value_of(asymmetry->asymmetry),
+                     " must lie in (-1, 1)");
+    if (inertia)
+      FRICTION_CHECK(value_of(inertia->mass) >= 0.0,
+                     "extension inertia: mass = ", value_of(inertia->mass), " kg must be >= 0");
+    if (position_dependence)
+      FRICTION_CHECK(value_of(position_dependence->wavelength) > 0.0,
+                     "extension position-dependence: wavelength = ",
+                     value_of(position_dependence->wavelength), " m must be > 0");
+    if (normal_load)
+      FRICTION_CHECK(value_of(normal_load->friction_coefficient) > 0.0,
+                     "extension normal-load: friction_coefficient = ",
+                     value_of(normal_load->friction_coefficient), " must be > 0");
+  }
+
+ private:
+  template <class Self, class F>
+  static void visit_piece(Self& self, Effect e, F&& f) {
+    switch (e) {
+      case Effect::viscous:
+        f(self.viscous);
+        break;
+      case Effect::stribeck:
+        f(self.stribeck);
+        break;
+      case Effect::frictional_lag:
+        f(self.frictional_lag);
+        break;
+      case Effect::asymmetry:
+        f(self.asymmetry);
+        break;
+      case Effect::offset:
+        f(self.offset);
+        break;
+      case Effect::inertia:
+        f(self.inertia);
+        break;
+      case Effect::position_dependence:
+        f(self.position_dependence);
+        break;
+      case Effect::drift:
+        f(self.drift);
+        break;
+      case Effect::delay:
+        f(self.delay);
+        break;
+      case Effect::normal_load:
+        f(self.normal_load);
+        break;
+    }
+  }
+
+  template <class Self, class F>
+  static void for_each_parameter_impl(Self& s, F& f) {
+    if (s.viscous) f(Effect::viscous, std::string_view("viscous"), s.viscous->viscous);
+    if (s.stribeck) {
+      f(Effect::stribeck, std::string_view("static"), s.stribeck->static_force);
+      f(Effect::stribeck, std::string_view("stribeck_velocity"), s.stribeck->stribeck_velocity);
+      f(Effect::stribeck, std::string_view("stribeck_exponent"), s.stribeck->stribeck_exponent);
+    }
+    if (s.frictional_lag)
+      f(Effect::frictional_lag, std::string_view("lag_time"), s.frictional_lag->lag_time);
+    if (s.asymmetry) f(Effect::asymmetry, std::string_view("asymmetry"), s.asymmetry->asymmetry);
+    if (s.offset) f(Effect::offset, std::string_view("offset"), s.offset->offset);
+    if (s.inertia) f(Effect::inertia, std::string_view("mass"), s.inertia->mass);
+    if (s.position_dependence) {
+      f(Effect::position_dependence, std::string_view("amplitude"),
+        s.position_dependence->amplitude);
+      f(Effect::position_dependence, std::string_view("wavelength"),
+        s.position_dependence->wavelength);
+      f(Effect::position_dependence, std::string_view("phase"), s.position_dependence->phase);
+    }
+    if (s.drift) f(Effect::drift, std::string_view("relative_rate"), s.drift->relative_rate);
+    if (s.delay) f(Effect::delay, std::string_view("delay"), s.delay->delay);
+    if (s.normal_load)
+      f(Effect::normal_load, std::string_view("friction_coefficient"),
+        s.normal_load->friction_coefficient);
+  }
+};
+
+/// The per-sample context of an extended model: the motion over the interval (t_{k-1}, t_k].
+template <typename T>
+struct ExtendedMotion {
+  T x{0};             ///< displacement at t_k [m] (absolute: position-dependence uses it)
+  T dx{0};            ///< x_k - x_{k-1} [m]
+  T velocity{0};      ///< [m/s], dx / dt for a piecewise-linear record
+  T acceleration{0};  ///< [m/s^2]
+  T dt{0};            ///< t_k - t_{k-1} [s]; 0 for the first sample
+  double time = 0.0;  ///< t_k - t_0, time since the start [s]
+  T normal{0};        ///< normal force N [N], when has_normal
+  bool has_normal = false;
+  T level{1};  ///< external slip-force scale factor, multiplied with the level pieces
+};
+
+namespace detail {
+/// F0 of a base model: its parameters' sliding_force() if any, else their Coulomb level.
+template <class Base>
+auto base_sliding_force(const Base& base) -> typename Base::Scalar {
+  using T = typename Base::Scalar;
+  if constexpr (requires { base.parameters().sliding_force(); }) {
+    return T(base.parameters().sliding_force());
+  } else if constexpr (requires { base.parameters().coulomb; }) {
+    return T(base.parameters().coulomb);
+  } else {
+    return T(0);
+  }
+}
+}  // namespace detail
+
+/// A base friction model with extension pieces; itself a FrictionModel.
+template <class Base>
+class Extended {
+ public:
+  using Scalar = typename Base::Scalar;
+  using T = Scalar;
+  using Parameters = ExtensionParameters<T>;
+
+  /// Smallest level handed to the base (keeps slip forces positive, e.g. under a strong drift).
+  static constexpr double kMinimumLevel = 1e-6;
+
+  /// `delay_capacity`: samples kept for the per-sample delay (allocated only with a delay piece).
+  Extended(Base base, Parameters extensions, std::size_t delay_capacity = 1024)
+      : base_(std::move(base)), p_(std::move(extensions)) {
+    static_assert(FrictionModel<Base>, "Extended<Base> needs a friction model as its base");
+    p_.validate();
+    f0_ =
+        value_of(p_.reference_force) > 0.0 ? p_.reference_force : detail::base_sliding_force(base_);
+    const bool needs_f0 = p_.stribeck || p_.asymmetry || p_.position_dependence || p_.normal_load;
+    FRICTION_CHECK(!needs_f0 || value_of(f0_) > 0.0,
+                   "extensions: the base has no positive sliding force; give reference_force");
+    if (p_.position_dependence)
+      FRICTION_CHECK(std::abs(value_of(p_.position_dependence->amplitude)) < value_of(f0_),
+                     "extension position-dependence: |amplitude| = ",
+                     std::abs(value_of(p_.position_dependence->amplitude)),
+                     " N must be below the sliding force F0 = ", value_of(f0_), " N");
+    if (p_.delay) {
+      FRICTION_CHECK(delay_capacity >= 2, "extension delay: delay_capacity must be >= 2");
+      ring_time_.assign(delay_capacity, 0.0);
+      ring_x_.assign(delay_capacity, T(0));
+      ring_a_.assign(delay_capacity, T(0));
+    }
+    reset_extension_state();
+  }
+
+  const Base& base() const noexcept { return base_; }
+  Base& base() noexcept { return base_; }
+  const Parameters& extensions() const noexcept { return p_; }
+  /// F0 [N] (see the header comment).
+  const T& reference_force() const noexcept { return f0_; }
+
+  /// Virgin base and extension states.
+  void reset() {
+    base_.reset();
+    reset_extension_state();
+  }
+
+  /// Extension states only (lag, direction, delay ring, accumulated x and t): keeps a base state
+  /// set through base().
+  void reset_extension_state() {
+    lagged_velocity_ = T(0);
+    lag_started_ = false;
+    direction_ = T(0);
+    level_ = T(1);
+    x_ = T(0);
+    time_ = 0.0;
+    previous_velocity_ = T(0);
+    previous_dt_ = 0.0;
+    ring_count_ = 0;
+    ring_head_ = 0;
+    delayed_x_started_ = false;
+    delayed_x_ = T(0);
+  }
+
+  /// The FrictionModel interface: builds the context from the increments (see the header).
+  T step(const Motion<T>& m) noexcept {
+    ExtendedMotion<T> c;
+    const double dt = value_of(m.dt);
+    x_ += m.dx;
+    time_ += dt;
+    c.x = x_;
+    c.dx = m.dx;
+    c.velocity = m.velocity;
+    c.dt = m.dt;
+    c.time = time_;
+    c.level = m.level;
+    if (dt > 0.0) {
+      if (previous_dt_ > 0.0)
+        c.acceleration = (m.velocity - previous_velocity_) / (0.5 * (dt + previous_dt_));
+      previous_velocity_ = m.velocity;
+      previous_dt_ = dt;
+    }
+    return step(c);
+  }
+
+  /// One sample with the full context; applies the per-sample delay (D >= 0) first.
+  T step(const ExtendedMotion<T>& c) noexcept {
+    if (!p_.delay || ring_time_.empty()) return step_shifted(c);
+    ExtendedMotion<T> d = c;
+    push_ring(c.time, c.x, c.acceleration);
+    const T shift = value_of(p_.delay->delay) > 0.0 ? p_.delay->delay : T(0);
+    interpolate_ring(T(c.time) - shift, d.x, d.acceleration);
+    if (!delayed_x_started_) {
+      delayed_x_ = d.x;
+      delayed_x_started_ = true;
+    }
+    d.dx = d.x - delayed_x_;
+    delayed_x_ = d.x;
+    d.velocity = value_of(c.dt) > 0.0 ? T(d.dx / c.dt) : T(0);
+    return step_shifted(d);
+  }
+
+  /// One sample whose context is already shifted by the delay (record-level simulation does it by
+  /// interpolation): every piece but the delay.
+  T step_shifted(const ExtendedMotion<T>& c) noexcept {
+    using std::exp;
+    using std::sin;
+    const double dt = value_of(c.dt);
+    T v = c.velocity;
+    if (p_.frictional_lag) {
+      if (dt > 0.0) {
+        if (!lag_started_ || value_of(p_.frictional_lag->lag_time) <= 0.0) {
+          lagged_velocity_ = c.velocity;
+          lag_started_ = true;
+        } else {
+          lagged_velocity_ = c.velocity + (lagged_velocity_ - c.velocity) *
+                                              exp(-c.dt / p_.frictional_lag->lag_time);
+        }
+      }
+      v = lagged_velocity_;
+    }
+
+    T level = c.level;
+    if (p_.stribeck) {
+      const auto& s = *p_.stribeck;
+      level *= T(1) + (s.static_force / f0_ - T(1)) *
+                          stribeck_weight(v, s.stribeck_velocity, s.stribeck_exponent);
+    }
+    if (p_.asymmetry) level *= T(1) + p_.asymmetry->asymmetry * direction_;
+    if (p_.position_dependence) {
+      const auto& pd = *p_.position_dependence;
+      level *= T(1) + pd.amplitude / f0_ * sin(T(2.0 * M_PI) * c.x / pd.wavelength + pd.phase);
+    }
+    if (p_.drift) level *= T(1) + p_.drift->relative_rate * T(c.time);
+    if (p_.normal_load && c.has_normal)
+      level *= p_.normal_load->friction_coefficient * c.normal / f0_;
+    if (level < T(kMinimumLevel)) level = T(kMinimumLevel);
+    level_ = level;
+
+    const T base_force = base_.step(Motion<T>{c.dx, c.velocity, c.dt, level});
+    if (p_.asymmetry) direction_ = clamp(T(base_force / (level * f0_)), T(-1), T(1));
+
+    T force = base_force;
+    if (p_.viscous) force += p_.viscous->viscous * v;
+    if (p_.offset) force += p_.offset->offset;
+    if (p_.inertia) force += p_.inertia->mass * c.acceleration;
+    return force;
+  }
+
+  /// Level handed to the base at the last step.
+  const T& level() const noexcept { return level_; }
+  /// Lagged velocity v_l of the frictional-lag piece after the last step (0 without that piece).
+  const T& lagged_velocity() const noexcept { return lagged_velocity_; }
+  /// Asymmetry direction indicator d in [-1, 1] for the next step.
+  const T& direction() const noexcept { return direction_; }
+
+ private:
+  void push_ring(double t, const T& x, const T& a) noexcept {
+    const std::size_t cap = ring_time_.size();
+    ring_head_ = ring_count_ == 0 ? 0 : (ring_head_ + 1 == cap ? 0 : ring_head_ + 1);
+    ring_time_[ring_head_] = t;
+    ring_x_[ring_head_] = x;
+    ring_a_[ring_head_] = a;
+    if (ring_count_ < cap) ++ring_count_;
+  }
+
+  // Linear interpolation of x and a at `target` over the ring, held at its ends.
+  void interpolate_ring(const T& target, T& x, T& a) const noexcept {
+    const std::size_t cap = ring_time_.size();
+    const double tv = value_of(target);
+    std::size_t newer = ring_head_;
+    if (ring_time_[newer] <= tv) {
+      x = ring_x_[newer];
+      a = ring_a_[newer];
+      return;
+    }
+    for (std::size_t j = 1; j < ring_count_; ++j) {
+      const std::size_t older = newer == 0 ? cap - 1 : newer - 1;
+      if (ring_time_[older] <= tv) {
+        const T w = (target - ring_time_[older]) / (ring_time_[newer] - ring_time_[older]);
+        x = ring_x_[older] + (ring_x_[newer] - ring_x_[older]) * w;
+        a = ring_a_[older] + (ring_a_[newer] - ring_a_[older]) * w;
+        return;
+      }
+      newer = older;
+    }
+    x = ring_x_[newer];  // older than the ring (or than the record): hold the oldest sample
+    a = ring_a_[newer];
+  }
+
+  Base base_;
+  Parameters p_;
+  T f0_{0};
+  // Extension states.
+  T lagged_velocity_{0};
+  bool lag_started_ = false;
+  T direction_{0};
+  T level_{1};
+  // step(Motion) accumulators.
+  T x_{0};
+  double time_ = 0.0;
+  T previous_velocity_{0};
+  double previous_dt_ = 0.0;
+  // Per-sample delay ring.
+  std::vector<double> ring_time_;
+  std::vector<T> ring_x_;
+  std::vector<T> ring_a_;
+  std::size_t ring_head_ = 0;
+  std::size_t ring_count_ = 0;
+  bool delayed_x_started_ = false;
+  T delayed_x_{0};
+};
+
+/// Simulates an extended model on a record, from whatever state it is in (reset() it first):
+/// displacement `x` [m] at `time` [s], optional `normal` force [N] (empty: none; required by a
+/// normal-load piece), force [N] written to `force`.  Delay by interpolation and acceleration by
+/// the central second difference of the (shifted) record, as the header comment says.
+template <class Base, typename T = typename Base::Scalar>
+void simulate_extended(Extended<Base>& model, std::span<const double> time, std::span<const T> x,
+                       std::span<const double> normal, std::span<T> force) {
+  const std::size_t n = x.size();
+  FRICTION_CHECK(time.size() == n && force.size() == n,
+                 "simulate_extended: time, displacement and force must have the same length");
+  FRICTION_CHECK(normal.empty() || normal.size() == n,
+                 "simulate_extended: the normal force must be empty or as long as the record");
+  const auto& p = model.extensions();
+  FRICTION_CHECK(!p.normal_load || !normal.empty(),
+                 "simulate_extended: the normal-load extension needs a normal force record");
+  if (n == 0) return;
+
+  // The displacement at t_k - D (all samples when there is no delay).
+  std::vector<T> xs(x.begin(), x.end());
+  if (p.delay && value_of(p.delay->delay) != 0.0) {
+    const T delay = p.delay->delay;
+    std::size_t j = 0;  // time[j] <= target < time[j + 1]; targets increase with k
+    for (std::size_t k = 0; k < n; ++k) {
+      const T target = T(time[k]) - delay;
+      const double tv = value_of(target);
+      if (tv <= time.front()) {
+        xs[k] = x.front();
+      } else if (tv >= time.back()) {
+        xs[k] = x.back();
+      } else {
+        while (j + 1 < n && time[j + 1] <= tv) ++j;
+        const T w = (target - time[j]) / (time[j + 1] - time[j]);
+        xs[k] = x[j] + (x[j + 1] - x[j]) * w;
+      }
+    }
+  }
+  // Velocities of the intervals and central second-difference accelerations at the samples.
+  std::vector<T> v(n, T(0)), a(n, T(0));
+  for (std::size_t k = 1; k < n; ++k) v[k] = (xs[k] - xs[k - 1]) / (time[k] - time[k - 1]);
+  if (n >= 3) {
+    for (std::size_t k = 1; k + 1 < n; ++k)
+      a[k] = (v[k + 1] - v[k]) / (0.5 * (time[k + 1] - time[k - 1]));
+    a[0] = a[1];
+    a[n - 1] = a[n - 2];
+  }
+  for (std::size_t k = 0; k < n; ++k) {
+    ExtendedMotion<T> c;
+    c.x = xs[k];
+    c.dx = k > 0 ? T(xs[k] - xs[k - 1]) : T(0);
+    c.velocity = v[k];
+    c.acceleration = a[k];
+    c.dt = k > 0 ? T(time[k] - time[k - 1]) : T(0);
+    c.time = time[k] - time.front();
+    if (!normal.empty()) {
+      c.normal = T(normal[k]);
+      c.has_normal = true;
+    }
+    force[k] = model.step_shifted(c);
+  }
+}
+
+/// Convenience overload returning the simulated force.
+template <class Base, typename T = typename Base::Scalar>
+std::vector<T> simulate_extended(Extended<Base>& model, std::span<const double> time,
+                                 std::span<const T> x, std::span<const double> normal = {}) {
+  std::vector<T> force(x.size());
+  simulate_extended(model, time, x, normal, std::span<T>(force));
+  return force;
+}
+
+}  // namespace friction

@@ -1,0 +1,413 @@
+// The extension pieces of methods.md section 7 around the base models.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "friction/dnlrx.hpp"
+#include "friction/extensions.hpp"
+#include "friction/gms.hpp"
+#include "friction/lugre.hpp"
+#include "friction/maxwell_slip.hpp"
+#include "friction/simulate.hpp"
+#include "friction/static_friction.hpp"
+#include "support/model_properties.hpp"
+
+namespace {
+
+using friction::Effect;
+using friction::Extended;
+using friction::ExtensionParameters;
+using friction::MaxwellSlip;
+using friction::MaxwellSlipParameters;
+using friction::Motion;
+
+const MaxwellSlipParameters<double> kFour{{4e4, 3e4, 2e4, 1e4}, {1e-6, 3e-6, 7e-6, 15e-6}};
+const double kF0 = 0.42;        // sum k_i Delta_i of kFour [N]
+const double kStiffness = 1e5;  // sum k_i [N/m]
+
+using ExtendedMs = Extended<MaxwellSlip<double>>;
+
+ExtendedMs extended(const ExtensionParameters<double>& p) {
+  return ExtendedMs(MaxwellSlip<double>(kFour), p);
+}
+
+// A record sliding at constant speed v (m/s) from x0, n samples at period ts.
+void ramp(double v, std::size_t n, double ts, std::vector<double>& time, std::vector<double>& x,
+          double x0 = 0.0) {
+  time.resize(n);
+  x.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    time[k] = ts * static_cast<double>(k);
+    x[k] = x0 + v * time[k];
+  }
+}
+
+std::vector<double> base_force(const std::vector<double>& time, const std::vector<double>& x) {
+  MaxwellSlip<double> ms(kFour);
+  return friction::simulate(ms, std::span<const double>(time), std::span<const double>(x));
+}
+
+std::vector<double> run(ExtendedMs& m, const std::vector<double>& time,
+                        const std::vector<double>& x, const std::vector<double>& normal = {}) {
+  m.reset();
+  return friction::simulate_extended(m, std::span<const double>(time), std::span<const double>(x),
+                                     std::span<const double>(normal));
+}
+
+TEST(Extensions, NamesAreThoseOfMethodsSection7) {
+  EXPECT_EQ(friction::effect_name(Effect::frictional_lag), "frictional-lag");
+  EXPECT_EQ(friction::effect_name(Effect::position_dependence), "position-dependence");
+  EXPECT_EQ(friction::effect_name(Effect::normal_load), "normal-load");
+  for (Effect e : friction::kAllEffects)
+    EXPECT_EQ(friction::effect_from_name(friction::effect_name(e)), e);
+  EXPECT_FALSE(friction::effect_from_name("nonlocal-memory").has_value());
+
+  ExtensionParameters<double> p;
+  for (Effect e : friction::kAllEffects) p.enable(e);
+  std::vector<std::string> names;
+  p.for_each_parameter([&](Effect, std::string_view n, double&) { names.emplace_back(n); });
+  const std::vector<std::string> expected{"viscous",
+                                          "static",
+                                          "stribeck_velocity",
+                                          "stribeck_exponent",
+                                          "lag_time",
+                                          "asymmetry",
+                                          "offset",
+                                          "mass",
+                                          "amplitude",
+                                          "wavelength",
+                                          "phase",
+                                          "relative_rate",
+                                          "delay",
+                                          "friction_coefficient"};
+  EXPECT_EQ(names, expected);
+  EXPECT_EQ(p.parameter_count(), expected.size());
+  p.disable(Effect::stribeck);
+  EXPECT_FALSE(p.has(Effect::stribeck));
+  EXPECT_EQ(p.parameter_count(), expected.size() - 3);
+
+  p.offset->offset = 0.25;
+  const auto q = p.cast<float>([](double v) { return static_cast<float>(v); });
+  EXPECT_FALSE(q.has(Effect::stribeck));
+  EXPECT_FLOAT_EQ(q.offset->offset, 0.25f);
+}
+
+TEST(Extensions, OffsetAddsAConstantEvenAtRest) {
+  ExtensionParameters<double> p;
+  p.offset = {{0.05}};
+  auto m = extended(p);
+  m.reset();
+  EXPECT_DOUBLE_EQ(m.step(Motion<double>{0, 0, 0}), 0.05);  // virgin, at rest
+  std::vector<double> time, x;
+  friction::testing::test_excitation(1000, 1e-3, 20e-6, time, x);
+  const auto f = run(m, time, x);
+  const auto f0 = base_force(time, x);
+  for (std::size_t k = 0; k < x.size(); ++k) ASSERT_NEAR(f[k] - f0[k], 0.05, 1e-15);
+}
+
+TEST(Extensions, InertiaAddsMassTimesAcceleration) {
+  ExtensionParameters<double> p;
+  p.inertia = {{2.0}};
+  auto m = extended(p);
+  const double ts = 1e-3, w = 2 * M_PI * 5.0, amplitude = 30e-6;
+  std::vector<double> time(400), x(400);
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    time[k] = ts * static_cast<double>(k);
+    x[k] = amplitude * std::sin(w * time[k]);
+  }
+  const auto f = run(m, time, x);
+  const auto f0 = base_force(time, x);
+  const double peak = 2.0 * amplitude * w * w;
+  for (std::size_t k = 1; k + 1 < x.size(); ++k)  // central difference: O((w ts)^2) relative
+    ASSERT_NEAR(f[k] - f0[k], -2.0 * w * w * x[k], 1e-3 * peak) << k;
+  // Per sample (step(Motion)) the backward difference estimates a one sample late.
+  m.reset();
+  const auto g = friction::simulate(m, std::span<const double>(time), std::span<const double>(x));
+  for (std::size_t k = 2; k < x.size(); ++k)
+    ASSERT_NEAR(g[k] - f0[k], -2.0 * w * w * x[k - 1], 1e-3 * peak) << k;
+}
+
+TEST(Extensions, ViscousAddsSigma2TimesVelocity) {
+  ExtensionParameters<double> p;
+  p.viscous = {{30.0}};
+  for (double v : {1e-3, -4e-3}) {
+    auto m = extended(p);
+    std::vector<double> time, x;
+    ramp(v, 200, 1e-3, time, x);
+    EXPECT_NEAR(run(m, time, x).back(), std::copysign(kF0, v) + 30.0 * v, 1e-12) << v;
+  }
+}
+
+TEST(Extensions, StribeckScalesTheSlidingLevelFromStaticToCoulomb) {
+  ExtensionParameters<double> p;
+  p.stribeck = {{/*static=*/0.6, /*vs=*/1e-3, /*q=*/2.0}};
+  for (double v : {2e-4, 1e-3, -1.5e-3, 1e-2}) {
+    auto m = extended(p);
+    std::vector<double> time, x;
+    ramp(v, 300, 1e-3, time, x);
+    const double g = kF0 + (0.6 - kF0) * std::exp(-(v / 1e-3) * (v / 1e-3));
+    EXPECT_NEAR(run(m, time, x).back(), std::copysign(g, v), 1e-12) << v;
+  }
+}
+
+TEST(Extensions, FrictionalLagDelaysTheVelocityOfTheViscousTerm) {
+  ExtensionParameters<double> p;
+  p.viscous = {{50.0}};
+  p.frictional_lag = {{0.02}};
+  auto m = extended(p);
+  m.reset();
+  const double ts = 1e-3, v1 = 1e-3, v2 = 3e-3;
+  double f = 0;
+  for (int k = 0; k < 300; ++k) f = m.step(Motion<double>{v1 * ts, v1, ts});
+  EXPECT_NEAR(f, kF0 + 50.0 * v1, 1e-12);  // steady: no lag left
+  for (int k = 1; k <= 100; ++k) {
+    f = m.step(Motion<double>{v2 * ts, v2, ts});
+    const double lagged = v2 + (v1 - v2) * std::exp(-k * ts / 0.02);
+    ASSERT_NEAR(f, kF0 + 50.0 * lagged, 1e-12) << k;
+  }
+}
+
+TEST(Extensions, AsymmetryGivesDirectionalLevelsCentredPreslidingAndNoJump) {
+  const double a = 0.2;
+  ExtensionParameters<double> p;
+  p.asymmetry = {{a}};
+  auto m = extended(p);
+  std::vector<double> time, x;
+  // Slide +, then - , then + again (triangle wave of +-60 um, well beyond the largest threshold).
+  const double ts = 1e-3, step = 1e-7;
+  double pos = 0;
+  for (int k = 0; k < 3000; ++k) {
+    time.push_back(ts * k);
+    const int phase = (k / 600) % 2;
+    pos += (k < 300 ? step : (phase ? -step : step));
+    x.push_back(pos);
+  }
+  const auto f = run(m, time, x);
+  const double f_plus = f[1799], f_minus = f[1199];  // the ends of a + and of a - slide
+  EXPECT_NEAR(f_plus, (1 + a) * kF0, 1e-12);
+  EXPECT_NEAR(f_minus, -(1 - a) * kF0, 1e-12);
+  EXPECT_NEAR((f_plus - (-f_minus)) / (f_plus + (-f_minus)), a, 1e-12);
+  // No jump anywhere, reversals included: the force moves by at most the stiffness times dx.
+  for (std::size_t k = 1; k < f.size(); ++k)
+    ASSERT_LE(std::abs(f[k] - f[k - 1]), kStiffness * std::abs(x[k] - x[k - 1]) * (1 + 1e-9))
+        << "sample " << k;
+
+  // Presliding from the virgin state is centred.  Inside every threshold the level does not act:
+  // the loop is exactly symmetric.  A loop in which the smaller operators slip is centred up to a
+  // second-order term (the level follows the force, a F / F0), far from the a F0 of sliding.
+  auto virgin_loop = [&](double amplitude) {
+    auto centred = extended(p);
+    centred.reset();
+    std::vector<double> loop;
+    for (int k = 1; k < 4000; ++k) {
+      const double dx =
+          amplitude * (std::sin(2 * M_PI * k / 1000.0) - std::sin(2 * M_PI * (k - 1) / 1000.0));
+      loop.push_back(centred.step(Motion<double>{dx, dx / 1e-3, 1e-3}));
+    }
+    const auto [lo, hi] = std::minmax_element(loop.begin() + 2000, loop.end());
+    return std::pair{*lo, *hi};
+  };
+  const auto [lo_small, hi_small] = virgin_loop(0.8e-6);
+  EXPECT_NEAR(hi_small, kStiffness * 0.8e-6, 1e-12);
+  EXPECT_NEAR(lo_small, -hi_small, 1e-15);
+  const auto [lo, hi] = virgin_loop(4e-6);
+  EXPECT_GT(hi - lo, 0.4 * kF0);
+  EXPECT_LT(std::abs(hi + lo) / 2, 0.25 * a * kF0);
+}
+
+TEST(Extensions, PositionDependenceFollowsTheTravel) {
+  ExtensionParameters<double> p;
+  p.position_dependence = {{/*amplitude=*/0.1, /*wavelength=*/100e-6, /*phase=*/0.3}};
+  auto m = extended(p);
+  std::vector<double> time, x;
+  ramp(1e-4, 3000, 1e-3, time, x, /*x0=*/-20e-6);
+  const auto f = run(m, time, x);
+  for (std::size_t k = 500; k < x.size(); ++k)
+    ASSERT_NEAR(f[k], kF0 + 0.1 * std::sin(2 * M_PI * x[k] / 100e-6 + 0.3), 1e-12) << k;
+}
+
+TEST(Extensions, DriftScalesTheLevelWithTime) {
+  ExtensionParameters<double> p;
+  p.drift = {{-0.05}};
+  auto m = extended(p);
+  std::vector<double> time, x;
+  ramp(-1e-4, 4000, 1e-3, time, x);
+  const auto f = run(m, time, x);
+  for (std::size_t k = 500; k < x.size(); k += 250)
+    EXPECT_NEAR(f[k], -kF0 * (1 - 0.05 * time[k]), 1e-12) << k;
+}
+
+TEST(Extensions, NormalLoadMakesFrictionProportionalToTheNormalForce) {
+  ExtensionParameters<double> p;
+  p.normal_load = {{/*friction_coefficient=*/0.21}};  // N_ref = F0 / mu = 2 N
+  auto m = extended(p);
+  std::vector<double> time, x, normal;
+  ramp(1e-4, 3000, 1e-3, time, x);
+  for (double t : time) normal.push_back(2.0 + std::sin(2 * M_PI * t / 3.0));
+  const auto f = run(m, time, x, normal);
+  for (std::size_t k = 500; k < x.size(); ++k) ASSERT_NEAR(f[k], 0.21 * normal[k], 1e-12) << k;
+  EXPECT_THROW(run(m, time, x), friction::InvalidParameter);  // needs the normal force
+}
+
+TEST(Extensions, DelayShiftsTheForceInTime) {
+  std::vector<double> time, x;
+  friction::testing::test_excitation(1500, 1e-3, 20e-6, time, x);
+  const auto f0 = base_force(time, x);
+  ExtensionParameters<double> p;
+  p.delay = {{5e-3}};  // five samples
+  auto m = extended(p);
+  const auto f = run(m, time, x);
+  for (std::size_t k = 0; k < 5; ++k) EXPECT_EQ(f[k], 0.0);
+  for (std::size_t k = 5; k < x.size(); ++k) ASSERT_NEAR(f[k], f0[k - 5], 1e-14) << k;
+
+  // A fractional delay is the base on the linearly interpolated displacement; the per-sample
+  // (causal, ring-buffer) path gives the same as the record path.
+  p.delay->delay = 2.5e-3;
+  auto fractional = extended(p);
+  const auto fr = run(fractional, time, x);
+  std::vector<double> shifted(x.size());
+  for (std::size_t k = 0; k < x.size(); ++k)
+    shifted[k] = k < 3 ? x[0] : 0.5 * (x[k - 2] + x[k - 3]);
+  const auto expected = base_force(time, shifted);
+  for (std::size_t k = 0; k < x.size(); ++k) ASSERT_NEAR(fr[k], expected[k], 1e-14) << k;
+  fractional.reset();
+  const auto per_sample =
+      friction::simulate(fractional, std::span<const double>(time), std::span<const double>(x));
+  for (std::size_t k = 0; k < x.size(); ++k) ASSERT_NEAR(per_sample[k], expected[k], 1e-14) << k;
+}
+
+TEST(Extensions, NoPiecesIsTheBaseModel) {
+  std::vector<double> time, x;
+  friction::testing::test_excitation(1000, 1e-3, 20e-6, time, x);
+  auto m = extended({});
+  const auto f = run(m, time, x);
+  EXPECT_EQ(f, base_force(time, x));
+}
+
+TEST(Extensions, RejectsInvalidPieces) {
+  ExtensionParameters<double> p;
+  p.asymmetry = {{1.0}};
+  EXPECT_THROW(extended(p), friction::InvalidParameter);
+  p = {};
+  p.stribeck = {{-0.5, 1e-3, 2.0}};
+  EXPECT_THROW(extended(p), friction::InvalidParameter);
+  p = {};
+  p.position_dependence = {{0.5, 1e-4, 0.0}};  // |amplitude| >= F0 = 0.42 N
+  EXPECT_THROW(extended(p), friction::InvalidParameter);
+  p = {};
+  p.frictional_lag = {{-1.0}};
+  EXPECT_THROW(extended(p), friction::InvalidParameter);
+  p = {};
+  p.offset = {{NAN}};
+  EXPECT_THROW(extended(p), friction::InvalidParameter);
+  p = {};
+  p.normal_load = {{0.0}};
+  EXPECT_THROW(extended(p), friction::InvalidParameter);
+}
+
+// Every base model takes every piece; the wrapper is itself a model that does not allocate.
+template <class Base>
+void expect_wraps(Base base) {
+  ExtensionParameters<double> p;
+  for (Effect e : friction::kAllEffects) p.enable(e);
+  p.viscous->viscous = 5.0;
+  p.stribeck->static_force = 1.3 * friction::detail::base_sliding_force(base);
+  p.frictional_lag->lag_time = 0.01;
+  p.asymmetry->asymmetry = 0.1;
+  p.offset->offset = 0.01;
+  p.inertia->mass = 0.5;
+  p.position_dependence->amplitude = 0.05 * friction::detail::base_sliding_force(base);
+  p.position_dependence->wavelength = 50e-6;
+  p.drift->relative_rate = 0.02;
+  p.delay->delay = 1.5e-3;
+  Extended<Base> m(base, p, 16);
+  static_assert(friction::FrictionModel<Extended<Base>>);
+  std::vector<double> time, x, normal;
+  friction::testing::test_excitation(2000, 1e-3, 20e-6, time, x);
+  for (double t : time) normal.push_back(10.0 + t);
+  m.reset();
+  const auto f =
+      friction::simulate_extended(m, std::span<const double>(time), std::span<const double>(x),
+                                  std::span<const double>(normal));
+  for (double v : f) ASSERT_TRUE(std::isfinite(v));
+  friction::testing::expect_step_does_not_allocate(m, time, x);
+}
+
+TEST(Extensions, WrapEveryBaseModel) {
+  expect_wraps(MaxwellSlip<double>(kFour));
+  auto d = friction::DnlrxParameters<double>::from_maxwell_slip(kFour);
+  d.input_filter = {100.0, 50.0};
+  expect_wraps(friction::Dnlrx<double>(d));
+  expect_wraps(
+      friction::Gms<double>({{6e4, 3e4, 1e4}, {0.5, 0.3, 0.2}, {0.4, 0.5, 1e-4, 2.0}, 100.0, 0.0}));
+  friction::LuGreParameters<double> lugre;
+  lugre.stiffness = 1e5;
+  lugre.micro_damping = 30.0;
+  lugre.viscous = 0.4;
+  lugre.coulomb = 0.4;
+  lugre.static_force = 0.5;
+  lugre.stribeck_velocity = 1e-4;
+  lugre.stribeck_exponent = 2.0;
+  expect_wraps(friction::LuGre<double>(lugre));
+  expect_wraps(friction::StaticFriction<double>({{0.4, 0.5, 1e-4, 2.0}, 1.0}));
+}
+
+TEST(Extensions, JetDerivativesMatchFiniteDifferences) {
+  // Two Maxwell Slip operators (k, Delta) and every piece but normal-load (no normal force in the
+  // harness's simulate): viscous, static, vs, q, lag_time, asymmetry, offset, mass, amplitude,
+  // wavelength, phase, relative_rate, delay.
+  auto factory = [](const auto& theta) {
+    using T = typename std::decay_t<decltype(theta)>::value_type;
+    MaxwellSlipParameters<T> ms{{theta[0], theta[2]}, {theta[1], theta[3]}};
+    ExtensionParameters<T> p;
+    p.viscous = {{theta[4]}};
+    p.stribeck = {{theta[5], theta[6], theta[7]}};
+    p.frictional_lag = {{theta[8]}};
+    p.asymmetry = {{theta[9]}};
+    p.offset = {{theta[10]}};
+    p.inertia = {{theta[11]}};
+    p.position_dependence = {{theta[12], theta[13], theta[14]}};
+    p.drift = {{theta[15]}};
+    p.delay = {{theta[16]}};
+    return Extended<MaxwellSlip<T>>(MaxwellSlip<T>(ms), p, 32);
+  };
+  std::vector<double> time, x;
+  friction::testing::test_excitation(3000, 1e-3, 20e-6, time, x);
+  const std::vector<double> theta{4e4,  2e-6, 1e4, 12e-6, 300.0, 0.35, 5e-5, 1.5,   0.01,
+                                  0.15, 0.02, 5.0, 0.03,  40e-6, 0.4,  0.1,  2.3e-3};
+  friction::testing::expect_derivatives_match_finite_differences(factory, theta, time, x, 1e-4);
+}
+
+TEST(Extensions, JetDerivativesOfTheNormalLoadPieceOnARecord) {
+  using Jet = ceres::Jet<double, 1>;
+  std::vector<double> time, x, normal;
+  friction::testing::test_excitation(1000, 1e-3, 20e-6, time, x);
+  for (double t : time) normal.push_back(2.0 + t);
+  auto simulate_mu = [&](auto mu) {
+    using T = decltype(mu);
+    ExtensionParameters<T> p;
+    p.normal_load = {{mu}};
+    MaxwellSlipParameters<T> ms{{T(4e4), T(1e4)}, {T(2e-6), T(12e-6)}};
+    Extended<MaxwellSlip<T>> m(MaxwellSlip<T>(ms), p);
+    m.reset();
+    std::vector<T> xt(x.begin(), x.end());
+    return friction::simulate_extended(m, std::span<const double>(time), std::span<const T>(xt),
+                                       std::span<const double>(normal));
+  };
+  const double mu = 0.1, h = 1e-7;
+  const auto fj = simulate_mu(Jet(mu, 0));
+  const auto fp = simulate_mu(mu + h), fm = simulate_mu(mu - h);
+  double worst = 0, norm = 0;
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    const double fd = (fp[k] - fm[k]) / (2 * h);
+    worst = std::max(worst, std::abs(fj[k].v[0] - fd));
+    norm = std::max(norm, std::abs(fd));
+  }
+  EXPECT_GT(norm, 0.0);
+  EXPECT_LT(worst, 1e-5 * norm);
+}
+
+}  // namespace
