@@ -1,6 +1,5 @@
-// friction-identify: placeholder entry point while the CLI is assembled.
-#include <iostream>
-int main() {
-  std::cerr << "friction-identify: not yet assembled\n";
-  return 2;
-}
+// friction-identify: identifies friction models from displacement-force records.
+// The commands are in src/cli/; see cli.md for the contract.
+#include "cli.hpp"
+
+int main(int argc, char** argv) { return friction::cli::run(argc, argv); }

@@ -59,12 +59,12 @@ class NumericalError : public Error {
 };
 
 namespace detail {
+// The message is for the user of a tool or a controller: it says what is wrong with which value,
+// without the source location (which a debugger gives).
 template <class E, class... Args>
-[[noreturn]] void throw_with_message(const char* expr, const char* file, int line,
-                                     const Args&... args) {
+[[noreturn]] void throw_with_message(const Args&... args) {
   std::ostringstream s;
   (s << ... << args);
-  s << " (check `" << expr << "` failed at " << file << ":" << line << ")";
   throw E(s.str());
 }
 }  // namespace detail
@@ -75,7 +75,7 @@ template <class E, class... Args>
 #define FRICTION_CHECK_AS(ErrorType, cond, ...)                                              \
   do {                                                                                      \
     if (!(cond))                                                                            \
-      ::friction::detail::throw_with_message<ErrorType>(#cond, __FILE__, __LINE__, __VA_ARGS__); \
+      ::friction::detail::throw_with_message<ErrorType>(__VA_ARGS__);                      \
   } while (false)
 
 /// Always-on parameter check (throws friction::InvalidParameter).

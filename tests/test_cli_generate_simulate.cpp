@@ -1,0 +1,145 @@
+// The generate and simulate commands, driven as a user would drive them.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <string>
+
+#include "friction/csv.hpp"
+#include "support/cli_runner.hpp"
+
+namespace {
+
+using friction::testing::run_cli;
+using friction::testing::TempDir;
+
+double rms_of(const std::vector<double>& v) {
+  double s = 0;
+  for (double e : v) s += e * e;
+  return std::sqrt(s / static_cast<double>(v.size()));
+}
+
+// Generated records are in the model's convention: read them without sign detection.
+friction::ReadOptions positive_sign() {
+  friction::ReadOptions o;
+  o.force_sign = friction::ForceSign::positive;
+  return o;
+}
+
+// Short records keep the suite quick: one slow speed and a few presliding cycles.
+const std::string kShort = " --stroke 0.2e-3 --speeds 1e-3,4e-3 --cycles 3 ";
+
+TEST(CliGenerate, WritesARecordAndTheTruthThatSimulateReproduces) {
+  TempDir dir;
+  for (const std::string model : {"maxwell-slip", "dnlrx", "lugre", "gms", "static"}) {
+    SCOPED_TRACE(model);
+    const std::string rec = dir.file(model + ".csv"), truth = dir.file(model + ".json");
+    auto g = run_cli("generate --model " + model + kShort + "--out " + rec + " --truth " + truth);
+    ASSERT_EQ(g.status, 0) << g.err;
+    auto s = run_cli("simulate --model-file " + truth + " --data " + rec + " --out " +
+                     dir.file("sim.csv"));
+    ASSERT_EQ(s.status, 0) << s.err;
+    friction::ReadOptions o;
+    o.columns.force = "simulated";
+    o.force_sign = friction::ForceSign::positive;
+    const auto sim = friction::read_record(dir.file("sim.csv"), o);
+    const auto original = friction::read_record(rec, positive_sign());
+    ASSERT_EQ(sim.size(), original.size());
+    // No noise: simulating the generating model on the record reproduces its force.
+    for (std::size_t k = 0; k < sim.size(); ++k) ASSERT_NEAR(sim.force[k], original.force[k], 1e-9);
+  }
+}
+
+TEST(CliGenerate, NoiseHasTheRequestedLevelAndTheSeedReproducesIt) {
+  TempDir dir;
+  const std::string a = dir.file("a.csv"), b = dir.file("b.csv"), c = dir.file("c.csv"),
+                    truth = dir.file("t.json");
+  ASSERT_EQ(run_cli("generate" + kShort + "--noise 0.05 --seed 9 --out " + a + " --truth " + truth).status, 0);
+  ASSERT_EQ(run_cli("generate" + kShort + "--noise 0.05 --seed 9 --out " + b).status, 0);
+  ASSERT_EQ(run_cli("generate" + kShort + "--noise 0.05 --seed 10 --out " + c).status, 0);
+  EXPECT_EQ(friction::testing::read_text(a), friction::testing::read_text(b));
+  EXPECT_NE(friction::testing::read_text(a), friction::testing::read_text(c));
+  ASSERT_EQ(run_cli("simulate --model-file " + truth + " --data " + a + " --out " + dir.file("s.csv")).status, 0);
+  friction::ReadOptions o;
+  o.columns.force = "residual";
+  o.force_sign = friction::ForceSign::positive;
+  const auto residual = friction::read_record(dir.file("s.csv"), o);
+  const double n = static_cast<double>(residual.size());
+  // The residual is the noise: its RMS is 0.05 N within 4 standard errors (0.05 / sqrt(2 n)).
+  EXPECT_NEAR(rms_of(residual.force), 0.05, 4 * 0.05 / std::sqrt(2 * n));
+}
+
+TEST(CliGenerate, EncoderResolutionQuantisesTheDisplacement) {
+  TempDir dir;
+  const std::string rec = dir.file("q.csv");
+  ASSERT_EQ(run_cli("generate" + kShort + "--resolution 1e-7 --out " + rec).status, 0);
+  const auto r = friction::read_record(rec);
+  for (double x : r.displacement) ASSERT_NEAR(x / 1e-7, std::round(x / 1e-7), 1e-6);
+}
+
+TEST(CliGenerate, EffectsChangeTheForceAsTheirFormulaSays) {
+  TempDir dir;
+  const std::string base = dir.file("base.csv"), off = dir.file("off.csv");
+  ASSERT_EQ(run_cli("generate" + kShort + "--out " + base).status, 0);
+  ASSERT_EQ(run_cli("generate" + kShort + "--effect offset=0.3 --out " + off).status, 0);
+  const auto a = friction::read_record(base, positive_sign());
+  const auto b = friction::read_record(off, positive_sign());
+  for (std::size_t k = 0; k < a.size(); ++k) ASSERT_NEAR(b.force[k] - a.force[k], 0.3, 1e-12);
+  // A normal-load effect makes the record carry a normal force column.
+  const std::string normal = dir.file("normal.csv");
+  ASSERT_EQ(run_cli("generate" + kShort + "--effect normal-load=0.3 --out " + normal).status, 0);
+  EXPECT_TRUE(friction::read_record(normal).has_normal());
+}
+
+TEST(CliGenerate, JsonSummaryNamesTheRecord) {
+  TempDir dir;
+  auto g = run_cli("generate" + kShort + "--format json --seed 4 --out " + dir.file("r.csv"));
+  ASSERT_EQ(g.status, 0) << g.err;
+  const auto doc = nlohmann::json::parse(g.out);
+  EXPECT_EQ(doc["schema_version"], 1);
+  EXPECT_TRUE(doc["warnings"].is_array());
+  EXPECT_EQ(doc["model"]["type"], "maxwell-slip");
+  EXPECT_EQ(doc["record"]["seed"], 4);
+}
+
+TEST(CliUsage, BadUsageExitsWithTwoAndBadDataWithOne) {
+  TempDir dir;
+  EXPECT_EQ(run_cli("").status, 2);
+  EXPECT_EQ(run_cli("no-such-command").status, 2);
+  EXPECT_EQ(run_cli("generate --model coulomb-only").status, 2);
+  EXPECT_EQ(run_cli("generate --effect sticky=1").status, 2);
+  EXPECT_EQ(run_cli("simulate --data x.csv").status, 2);  // --model-file missing
+  EXPECT_EQ(run_cli("--help").status, 0);
+
+  const std::string truth = dir.file("t.json"), rec = dir.file("r.csv");
+  ASSERT_EQ(run_cli("generate" + kShort + "--out " + rec + " --truth " + truth).status, 0);
+  friction::testing::write_text(dir.file("bad.csv"), "time,x,force\n0,0,1\n0.1,abc,2\n");
+  auto r = run_cli("simulate --model-file " + truth + " --data " + dir.file("bad.csv"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("bad.csv:3:2"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+
+  friction::testing::write_text(dir.file("bad.json"), "{\"type\": \"maxwell-slip\",\n \"parameters\": {\"stiffness\": [1e4], \"threshold\": [-1e-6]}}");
+  r = run_cli("simulate --model-file " + dir.file("bad.json") + " --data " + rec);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("threshold"), std::string::npos) << r.err;
+
+  friction::testing::write_text(dir.file("broken.json"), "{\"type\": \n  \"maxwell-slip\",, }");
+  r = run_cli("simulate --model-file " + dir.file("broken.json") + " --data " + rec);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.err.find("broken.json:2:"), std::string::npos) << r.err;
+}
+
+TEST(CliSimulate, NeverLeavesAHalfWrittenOutput) {
+  TempDir dir;
+  const std::string truth = dir.file("t.json"), rec = dir.file("r.csv"), out = dir.file("out.csv");
+  ASSERT_EQ(run_cli("generate" + kShort + "--out " + rec + " --truth " + truth).status, 0);
+  friction::testing::write_text(out, "precious\n");
+  friction::testing::write_text(dir.file("bad.csv"), "time,x,force\n0,0,1\n0,1,2\n");
+  EXPECT_EQ(run_cli("simulate --model-file " + truth + " --data " + dir.file("bad.csv") +
+                    " --out " + out).status, 1);
+  EXPECT_EQ(friction::testing::read_text(out), "precious\n");
+}
+
+}  // namespace
