@@ -3,7 +3,6 @@
 #include <sstream>
 
 #include "commands.hpp"
-#include "friction/metrics.hpp"
 
 namespace friction::cli {
 
