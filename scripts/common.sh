@@ -1,0 +1,43 @@
+# Shared by scripts/setup.sh and scripts/run-tests.sh (sourced, not run).
+#
+# Environment knobs (all optional):
+#   FRICTION_BUILD_DIR  build directory of the main build (default: build)
+#   FRICTION_JOBS       parallel build jobs (default: number of cores)
+
+FRICTION_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+FRICTION_BUILD_DIR="${FRICTION_BUILD_DIR:-build}"
+FRICTION_JOBS="${FRICTION_JOBS:-$(nproc 2>/dev/null || echo 2)}"
+
+# The Debian packages the build needs (README and CI rely on this list).
+FRICTION_PACKAGES=(cmake ninja-build g++ libeigen3-dev libceres-dev libnlopt-cxx-dev
+  libsundials-dev libgtest-dev libcli11-dev nlohmann-json3-dev libbenchmark-dev)
+
+say() { printf '\n==> %s\n' "$*"; }
+die() {
+  printf 'error: %s\n' "$*" >&2
+  exit 1
+}
+
+# Run "$@" and report how long it took: `timed "label" cmd args...`.
+timed() {
+  local label=$1 start=$SECONDS
+  shift
+  "$@"
+  printf -- '--- %s: %ds\n' "$label" $((SECONDS - start))
+}
+
+# Configure (only when there is no build yet, or when extra cache options are given) and build.
+# Usage: configure_and_build DIR [cmake -D options...]
+configure_and_build() {
+  local dir=$1
+  shift
+  if [[ ! -f "$dir/CMakeCache.txt" ]]; then
+    say "Configuring $dir (Ninja${*:+, $*})"
+    cmake -S "$FRICTION_ROOT" -B "$dir" -G Ninja "$@"
+  elif (($# > 0)); then
+    # Re-assert the options on an existing build (cheap when nothing changed); keep its generator.
+    cmake -S "$FRICTION_ROOT" -B "$dir" "$@" >/dev/null
+  fi
+  say "Building $dir with $FRICTION_JOBS jobs"
+  cmake --build "$dir" --parallel "$FRICTION_JOBS"
+}

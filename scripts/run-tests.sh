@@ -1,0 +1,92 @@
+#!/usr/bin/env bash
+# Run the tests:  bash scripts/run-tests.sh
+#
+#   1. builds build/ if needed (configures it like setup.sh when it does not exist),
+#   2. checks that every compile of the project's own sources has -Wall -Wextra -Wpedantic -Werror,
+#   3. runs the GoogleTest suite with ctest,
+#   4. install test: installs into a temporary prefix, builds examples/cmake-project against it
+#      with find_package(friction CONFIG REQUIRED) and runs it,
+#   5. the suite again under AddressSanitizer + UndefinedBehaviorSanitizer (build-asan/).
+#      FRICTION_SKIP_SANITIZERS=1 skips this pass (CI always runs it).
+set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+cd "$FRICTION_ROOT"
+
+ASAN_BUILD_DIR="${FRICTION_ASAN_BUILD_DIR:-build-asan}"
+CTEST_JOBS=2
+
+run_ctest() {
+  say "ctest in $1"
+  ctest --test-dir "$1" --output-on-failure -j "$CTEST_JOBS"
+}
+
+# Every compile command of a source under src/ apps/ tests/ bench/ must carry the warning flags.
+check_warning_flags() {
+  say "Checking warning flags of the project's own targets"
+  if [[ ! -f "$FRICTION_BUILD_DIR/build.ninja" ]]; then
+    echo "skipped: $FRICTION_BUILD_DIR is not a Ninja build"
+    return 0
+  fi
+  local commands bad n
+  commands=$(ninja -C "$FRICTION_BUILD_DIR" -t commands |
+    grep -E -- ' -c [^ ]*/(src|apps|tests|bench)/[^ ]*\.cpp' || true)
+  n=$(grep -c . <<<"$commands" || true)
+  ((n > 0)) || die "no compile commands found for the project's sources in $FRICTION_BUILD_DIR"
+  local flag
+  for flag in -Wall -Wextra -Wpedantic -Werror; do
+    bad=$(grep -v -- " $flag " <<<"$commands" || true)
+    [[ -z "$bad" ]] || die "compiled without $flag:"$'\n'"$bad"
+  done
+  echo "$n compile commands, all with -Wall -Wextra -Wpedantic -Werror"
+}
+
+install_test() {
+  INSTALL_TMP=$(mktemp -d "${TMPDIR:-/tmp}/friction-install-test.XXXXXX")
+  trap 'rm -rf "$INSTALL_TMP"' EXIT
+  local tmp=$INSTALL_TMP
+  say "Install test: cmake --install $FRICTION_BUILD_DIR --prefix $tmp/prefix"
+  cmake --install "$FRICTION_BUILD_DIR" --prefix "$tmp/prefix" >"$tmp/install.log" ||
+    { cat "$tmp/install.log"; die "cmake --install failed"; }
+  echo "installed $(grep -c -- '-- Installing' "$tmp/install.log") files"
+
+  say "Building examples/cmake-project against the installed package"
+  # Only the temporary prefix may provide `friction`: no package registries, no source tree.
+  cmake -S examples/cmake-project -B "$tmp/example" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+    -DCMAKE_PREFIX_PATH="$tmp/prefix" -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF \
+    -DCMAKE_FIND_USE_SYSTEM_PACKAGE_REGISTRY=OFF
+  local found
+  found=$(sed -n 's/^friction_DIR:PATH=//p' "$tmp/example/CMakeCache.txt")
+  [[ "$found" == "$tmp/prefix/"* ]] || die "example found friction in '$found', not in $tmp/prefix"
+  cmake --build "$tmp/example" --parallel "$FRICTION_JOBS"
+
+  say "Running the example"
+  local out
+  out=$("$tmp/example/friction-compensation") || { echo "$out"; die "the example failed"; }
+  echo "$out"
+  grep -q '^compensation check: OK$' <<<"$out" || die "the example did not report its check"
+}
+
+sanitizer_pass() {
+  if [[ "${FRICTION_SKIP_SANITIZERS:-0}" == 1 ]]; then
+    say "Skipping the ASan+UBSan pass (FRICTION_SKIP_SANITIZERS=1)"
+    return 0
+  fi
+  configure_and_build "$ASAN_BUILD_DIR" -DFRICTION_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DFRICTION_BUILD_BENCHMARKS=OFF
+  ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:detect_stack_use_after_return=1}" \
+    UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}" \
+    run_ctest "$ASAN_BUILD_DIR"
+}
+
+total_start=$SECONDS
+if [[ -f "$FRICTION_BUILD_DIR/CMakeCache.txt" ]]; then
+  timed "build ($FRICTION_BUILD_DIR)" configure_and_build "$FRICTION_BUILD_DIR"
+else
+  timed "configure + build ($FRICTION_BUILD_DIR)" configure_and_build "$FRICTION_BUILD_DIR" \
+    -DCMAKE_BUILD_TYPE=Release
+fi
+timed "warning flags" check_warning_flags
+timed "ctest ($FRICTION_BUILD_DIR)" run_ctest "$FRICTION_BUILD_DIR"
+timed "install test" install_test
+timed "sanitizer pass ($ASAN_BUILD_DIR)" sanitizer_pass
+say "All tests passed ($((SECONDS - total_start))s)"
