@@ -1,0 +1,373 @@
+// Initial-state estimation (see include/friction/initial_state.hpp for the method).
+#include "friction/initial_state.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "slip_regression.hpp"
+
+namespace friction {
+namespace {
+
+struct Prediction {
+  Eigen::VectorXd force;
+  Eigen::MatrixXd jacobian;  // d Fhat / d d_i
+};
+
+Prediction predict(std::span<const double> x, std::span<const double> thresholds,
+                   const Eigen::MatrixXd& filter, std::span<const double> d, bool with_jacobian) {
+  const auto traj = detail::operator_trajectories(thresholds, d, x, with_jacobian);
+  const Eigen::Index n = traj.delta.rows(), m = traj.delta.cols();
+  Prediction p;
+  p.force = Eigen::VectorXd::Zero(n);
+  if (with_jacobian) p.jacobian = Eigen::MatrixXd::Zero(n, m);
+  for (Eigen::Index i = 0; i < m; ++i)
+    for (Eigen::Index j = 0; j < filter.cols(); ++j) {
+      const double c = filter(i, j);
+      if (c == 0.0) continue;
+      p.force += c * detail::lagged(traj.delta.col(i), j);
+      if (with_jacobian) p.jacobian.col(i) += c * detail::lagged(traj.d_initial.col(i), j);
+    }
+  return p;
+}
+
+
+// Single-operator trajectory from initial deflection d (unit stiffness), sample 0 included.
+Eigen::VectorXd single_trajectory(std::span<const double> x, double threshold, double d) {
+  const Eigen::Index n = static_cast<Eigen::Index>(x.size());
+  Eigen::VectorXd out(n);
+  double s = std::clamp(d, -threshold, threshold);
+  out(0) = s;
+  for (Eigen::Index t = 1; t < n; ++t) {
+    s = std::clamp(s + x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)], -threshold, threshold);
+    out(t) = s;
+  }
+  return out;
+}
+
+Eigen::VectorXd filtered(const Eigen::VectorXd& delta, const Eigen::RowVectorXd& taps) {
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(delta.size());
+  for (Eigen::Index j = 0; j < taps.size(); ++j)
+    if (taps(j) != 0.0) f += taps(j) * detail::lagged(delta, j);
+  return f;
+}
+
+// Exact global minimiser over d in [-Delta, Delta] of sum_t (y(t) - sum_j taps_j delta(t-j; d))^2
+// for one operator.  Until its first saturation tau(d) the operator is d + xi(t) (xi = x - x(0));
+// from tau on it coincides with the trajectory started at +Delta (if it saturated at the top) or
+// at -Delta (bottom).  tau(d) is constant between the breakpoints d = Delta - max_{s<=t} xi(s)
+// and d = -Delta - min_{s<=t} xi(s), so on each such interval the cost is a quadratic in d whose
+// coefficients come from prefix sums (samples before tau), n explicit samples where lags straddle
+// tau, and the suffix cost of the matching reference trajectory.  Minimising every piece gives
+// the global minimum in O(N n^2).
+class OneOperator {
+ public:
+  OneOperator(std::span<const double> x, double threshold, const Eigen::RowVectorXd& taps)
+      : n_(static_cast<Eigen::Index>(x.size())), lags_(taps.size() - 1), threshold_(threshold),
+        big_theta_(taps.sum()), taps_(taps) {
+    xi_.resize(n_);
+    for (Eigen::Index t = 0; t < n_; ++t) xi_(t) = x[static_cast<std::size_t>(t)] - x[0];
+    eta_ = filtered(xi_, taps);
+    ref_top_ = single_trajectory(x, threshold, threshold);
+    ref_bottom_ = single_trajectory(x, threshold, -threshold);
+    f_top_ = filtered(ref_top_, taps);
+    f_bottom_ = filtered(ref_bottom_, taps);
+    run_max_.resize(n_);
+    run_min_.resize(n_);
+    std::vector<double> breaks{-threshold, threshold};
+    for (Eigen::Index t = 0; t < n_; ++t) {
+      run_max_(t) = t == 0 ? xi_(0) : std::max(run_max_(t - 1), xi_(t));
+      run_min_(t) = t == 0 ? xi_(0) : std::min(run_min_(t - 1), xi_(t));
+      if (t == 0 || run_max_(t) > run_max_(t - 1)) breaks.push_back(threshold - run_max_(t));
+      if (t == 0 || run_min_(t) < run_min_(t - 1)) breaks.push_back(-threshold - run_min_(t));
+    }
+    for (double& v : breaks) v = std::clamp(v, -threshold, threshold);
+    std::sort(breaks.begin(), breaks.end());
+    breaks.erase(std::unique(breaks.begin(), breaks.end()), breaks.end());
+    // One piece per interval: its first saturation time and side do not depend on y.
+    for (std::size_t k = 0; k + 1 < breaks.size(); ++k) {
+      if (!(breaks[k + 1] > breaks[k])) continue;
+      Piece p;
+      p.lo = breaks[k];
+      p.hi = breaks[k + 1];
+      const double d = 0.5 * (p.lo + p.hi);
+      const double* mx = run_max_.data();
+      const double* mn = run_min_.data();
+      const Eigen::Index tt = std::lower_bound(mx, mx + n_, threshold - d) - mx;
+      const Eigen::Index tb =
+          std::lower_bound(mn, mn + n_, -threshold - d, [](double u, double v) { return u > v; }) - mn;
+      p.top = tt <= tb;
+      p.tau = std::min(tt, tb);
+      pieces_.push_back(p);
+    }
+  }
+
+  /// Global minimiser over d of sum_t (y(t) - sum_j taps_j delta(t-j; d))^2.
+  double minimise(const Eigen::VectorXd& y) const {
+    Eigen::VectorXd p1(n_ + 1), p2(n_ + 1), s_top(n_ + 1), s_bottom(n_ + 1);
+    p1(0) = p2(0) = 0.0;
+    for (Eigen::Index t = 0; t < n_; ++t) {
+      const double r = y(t) - eta_(t);
+      p1(t + 1) = p1(t) + r;
+      p2(t + 1) = p2(t) + r * r;
+    }
+    s_top(n_) = s_bottom(n_) = 0.0;
+    for (Eigen::Index t = n_ - 1; t >= 0; --t) {
+      s_top(t) = s_top(t + 1) + (y(t) - f_top_(t)) * (y(t) - f_top_(t));
+      s_bottom(t) = s_bottom(t + 1) + (y(t) - f_bottom_(t)) * (y(t) - f_bottom_(t));
+    }
+    double best_d = 0.0, best_cost = std::numeric_limits<double>::infinity();
+    for (const Piece& pc : pieces_) {
+      // cost(d) = qa d^2 + qb d + qc on [lo, hi]
+      double qa = big_theta_ * big_theta_ * static_cast<double>(pc.tau);
+      double qb = -2.0 * big_theta_ * p1(pc.tau);
+      double qc = p2(pc.tau);
+      const Eigen::VectorXd& ref = pc.top ? ref_top_ : ref_bottom_;
+      const Eigen::Index end = std::min(n_, pc.tau + lags_);
+      for (Eigen::Index t = pc.tau; t < end; ++t) {
+        double alpha = 0.0, beta = 0.0;
+        for (Eigen::Index j = 0; j <= lags_; ++j) {
+          const Eigen::Index s = std::max<Eigen::Index>(t - j, 0);
+          if (s < pc.tau) alpha += taps_(j), beta += taps_(j) * xi_(s);
+          else beta += taps_(j) * ref(s);
+        }
+        const double r = y(t) - beta;
+        qa += alpha * alpha;
+        qb += -2.0 * alpha * r;
+        qc += r * r;
+      }
+      qc += (pc.top ? s_top : s_bottom)(end);
+      const double d = qa > 0.0 ? std::clamp(-qb / (2.0 * qa), pc.lo, pc.hi) : (qb > 0.0 ? pc.lo : pc.hi);
+      const double c = (qa * d + qb) * d + qc;
+      if (c < best_cost) best_cost = c, best_d = d;
+    }
+    return best_d;
+  }
+
+ private:
+  struct Piece {
+    double lo, hi;
+    Eigen::Index tau;
+    bool top;
+  };
+  Eigen::Index n_, lags_;
+  double threshold_, big_theta_;
+  Eigen::RowVectorXd taps_;
+  Eigen::VectorXd xi_, eta_, ref_top_, ref_bottom_, f_top_, f_bottom_, run_max_, run_min_;
+  std::vector<Piece> pieces_;
+};
+
+}  // namespace
+
+std::vector<double> estimate_initial_deflections(std::span<const double> x,
+                                                 std::span<const double> target,
+                                                 std::span<const double> thresholds,
+                                                 const Eigen::MatrixXd& filter,
+                                                 std::span<const double> guess,
+                                                 const InitialStateOptions& options) {
+  const std::size_t m = thresholds.size();
+  FRICTION_CHECK(m >= 1 && static_cast<std::size_t>(filter.rows()) == m && filter.cols() >= 1,
+                 "estimate_initial_deflections: filter must be M x (n+1) with M = ",
+                 m, " thresholds");
+  FRICTION_CHECK(x.size() == target.size() && !x.empty(),
+                 "estimate_initial_deflections: displacement and force lengths differ");
+  FRICTION_CHECK(guess.empty() || guess.size() == m,
+                 "estimate_initial_deflections: guess must have one value per operator");
+  for (double d : thresholds)
+    FRICTION_CHECK(std::isfinite(d) && d > 0.0, "estimate_initial_deflections: threshold ", d,
+                   " must be > 0");
+  // Only a prefix of the record depends on d: once the displacement has covered a range of
+  // 2 max(Delta) every operator has saturated whatever its initial deflection, and from then on
+  // (plus n samples of filter lag) the force no longer depends on d.  The rest of the record adds
+  // a constant to the cost and is left out.
+  {
+    const double span = 2.0 * *std::max_element(thresholds.begin(), thresholds.end());
+    double lo = x[0], hi = x[0];
+    std::size_t end = x.size();
+    for (std::size_t t = 0; t < x.size(); ++t) {
+      lo = std::min(lo, x[t]);
+      hi = std::max(hi, x[t]);
+      if (hi - lo >= span) {
+        end = std::min(x.size(), t + static_cast<std::size_t>(filter.cols()) + 1);
+        break;
+      }
+    }
+    x = x.first(end);
+    target = target.first(end);
+  }
+  const Eigen::Map<const Eigen::VectorXd> y(target.data(), static_cast<Eigen::Index>(target.size()));
+
+  auto cost_of = [&](const std::vector<double>& d) {
+    return (y - predict(x, thresholds, filter, d, false).force).squaredNorm();
+  };
+
+  // 1. Scan of plausible states.
+  std::vector<std::vector<double>> candidates;
+  candidates.emplace_back(m, 0.0);
+  if (!guess.empty()) {
+    std::vector<double> g(m);
+    for (std::size_t i = 0; i < m; ++i) g[i] = std::clamp(guess[i], -thresholds[i], thresholds[i]);
+    candidates.push_back(g);
+  }
+  const double dmin = *std::min_element(thresholds.begin(), thresholds.end());
+  const double dmax = *std::max_element(thresholds.begin(), thresholds.end());
+  const int grid = static_cast<int>(3 * m + 6);
+  std::vector<double> travels{0.0};
+  for (int k = 0; k < grid; ++k)
+    travels.push_back(0.5 * dmin * std::pow(4.0 * dmax / (0.5 * dmin), k / double(grid - 1)));
+  for (double s : {1.0, -1.0})
+    for (double u : travels) {
+      std::vector<double> d(m);
+      for (std::size_t i = 0; i < m; ++i) d[i] = s * std::max(thresholds[i] - u, -thresholds[i]);
+      candidates.push_back(d);
+    }
+  std::vector<std::pair<double, std::size_t>> ranked;
+  for (std::size_t c = 0; c < candidates.size(); ++c) ranked.emplace_back(cost_of(candidates[c]), c);
+  std::sort(ranked.begin(), ranked.end());
+
+  std::vector<OneOperator> single;
+  for (std::size_t i = 0; i < m; ++i)
+    single.emplace_back(x, thresholds[i], Eigen::RowVectorXd(filter.row(static_cast<Eigen::Index>(i))));
+  auto refine = [&](std::vector<double> best, int rounds = 4, int sweeps = 4, int gn_iterations = 8) {
+    double best_cost = cost_of(best);
+    // 2. Coordinate descent with each operator's exact global 1-D minimum, then
+    // 3. projected Gauss-Newton on all operators together (it moves along the valleys where only a
+    //    weighted sum of deflections is seen, which coordinate steps cannot follow); alternated
+    //    while either improves the cost.
+    const Eigen::Index mi = static_cast<Eigen::Index>(m);
+    for (int round = 0; round < rounds; ++round) {
+    const double round_start = best_cost;
+    {
+      const Eigen::Index n = y.size();
+      Eigen::MatrixXd contribution(n, mi);
+      for (Eigen::Index i = 0; i < mi; ++i)
+        contribution.col(i) = filtered(single_trajectory(x, thresholds[static_cast<std::size_t>(i)], best[static_cast<std::size_t>(i)]), filter.row(i));
+      Eigen::VectorXd total = contribution.rowwise().sum();
+      for (int sweep = 0; sweep < sweeps; ++sweep) {
+        bool moved = false;
+        for (Eigen::Index i = 0; i < mi; ++i) {
+          const std::size_t iu = static_cast<std::size_t>(i);
+          if (filter.row(i).isZero()) continue;
+          const Eigen::VectorXd yi = y - (total - contribution.col(i));
+          const double d = single[iu].minimise(yi);
+          if (d == best[iu]) continue;
+          const Eigen::VectorXd ci = filtered(single_trajectory(x, thresholds[iu], d), filter.row(i));
+          const double before = (yi - contribution.col(i)).squaredNorm();
+          const double after = (yi - ci).squaredNorm();
+          if (after < before - 1e-9 * best_cost) {
+            best[iu] = d;
+            total += ci - contribution.col(i);
+            contribution.col(i) = ci;
+            moved = true;
+          }
+        }
+        if (!moved) break;
+      }
+      best_cost = cost_of(best);
+    }
+
+    for (int it = 0; it < gn_iterations; ++it) {
+      const Prediction p = predict(x, thresholds, filter, best, true);
+      const Eigen::VectorXd r = y - p.force;
+      Eigen::VectorXd lo(mi), hi(mi);
+      for (Eigen::Index i = 0; i < mi; ++i) {
+        lo(i) = -thresholds[static_cast<std::size_t>(i)] - best[static_cast<std::size_t>(i)];
+        hi(i) = thresholds[static_cast<std::size_t>(i)] - best[static_cast<std::size_t>(i)];
+      }
+      const Eigen::VectorXd step = detail::box_least_squares(p.jacobian, r, lo, hi);
+      if (step.norm() <= 1e-14 * dmax) break;
+      bool accepted = false;
+      for (double alpha = 1.0; alpha > 1e-4; alpha *= 0.25) {
+        std::vector<double> trial(m);
+        for (std::size_t i = 0; i < m; ++i)
+          trial[i] = std::clamp(best[i] + alpha * step(static_cast<Eigen::Index>(i)), -thresholds[i],
+                                thresholds[i]);
+        const double c = cost_of(trial);
+        if (c < best_cost) {
+          accepted = best_cost - c > 1e-14 * best_cost;
+          best_cost = c;
+          best = trial;
+          break;
+        }
+      }
+      if (!accepted) break;
+    }
+    if (!(best_cost < round_start * (1.0 - 1e-8))) break;
+    }
+    return std::pair<double, std::vector<double>>(best_cost, best);
+  };
+
+  // Refine the best few starts (and the caller's guess): the cost is only piecewise quadratic,
+  // and operators that are seen only through a weighted sum early in the record make valleys with
+  // several local minima.
+  std::pair<double, std::vector<double>> result{std::numeric_limits<double>::infinity(), {}};
+  for (std::size_t r = 0; r < ranked.size() && r < options.refined_candidates; ++r) {
+    auto out = refine(candidates[ranked[r].second]);
+    if (out.first < result.first) result = std::move(out);
+  }
+  if (!guess.empty() && options.refined_candidates > 0) {
+    auto out = refine(candidates[1]);
+    if (out.first < result.first) result = std::move(out);
+  }
+  std::mt19937 gen(options.seed);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  for (std::size_t r = 0; r < options.random_starts; ++r) {
+    std::vector<double> start(m);
+    for (std::size_t i = 0; i < m; ++i) start[i] = unit(gen) * thresholds[i];
+    auto out = refine(start);
+    if (out.first < result.first) result = std::move(out);
+  }
+  if (result.second.empty()) return candidates[ranked.front().second];
+  // Basin hopping: perturb the winner on several scales and keep what improves.  Minima of this
+  // piecewise-quadratic cost can be a few percent of a threshold apart.
+  for (std::size_t h = 0; h < options.perturbations; ++h) {
+    const double scale = std::array<double, 3>{0.03, 0.1, 0.3}[h % 3];
+    std::vector<double> start = result.second;
+    for (std::size_t i = 0; i < m; ++i)
+      start[i] = std::clamp(start[i] + scale * thresholds[i] * unit(gen), -thresholds[i], thresholds[i]);
+    auto out = refine(start);
+    if (out.first < result.first * (1.0 - 1e-12)) result = std::move(out);
+  }
+  // Converge the winner fully.
+  return refine(result.second, 20, 10, 40).second;
+}
+
+std::vector<double> estimate_initial_deflections(const MaxwellSlipParameters<double>& parameters,
+                                                 std::span<const double> x,
+                                                 std::span<const double> force,
+                                                 std::span<const double> guess,
+                                                 const InitialStateOptions& options) {
+  parameters.validate(true);
+  Eigen::MatrixXd filter(static_cast<Eigen::Index>(parameters.size()), 1);
+  for (std::size_t i = 0; i < parameters.size(); ++i)
+    filter(static_cast<Eigen::Index>(i), 0) = parameters.stiffness[i];
+  return estimate_initial_deflections(x, force, parameters.threshold, filter, guess, options);
+}
+
+FreeRun free_run_maxwell_slip(const MaxwellSlipParameters<double>& parameters,
+                              std::span<const double> time, std::span<const double> x,
+                              std::span<const double> force) {
+  FRICTION_CHECK(time.size() == x.size() && x.size() == force.size() && !x.empty(),
+                 "free_run_maxwell_slip: time, displacement and force lengths differ");
+  FreeRun run;
+  run.initial_deflections = estimate_initial_deflections(parameters, x, force);
+  MaxwellSlip<double> model(parameters, true);
+  model.reset(std::span<const double>(run.initial_deflections));
+  run.simulated.resize(x.size());
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    Motion<double> m{0.0, 0.0, 0.0};
+    if (k > 0) {
+      m.dx = x[k] - x[k - 1];
+      m.dt = time[k] - time[k - 1];
+      m.velocity = m.dt > 0.0 ? m.dx / m.dt : 0.0;
+    }
+    run.simulated[k] = model.step(m);
+  }
+  run.errors = compute_errors(force, run.simulated);
+  return run;
+}
+
+}  // namespace friction

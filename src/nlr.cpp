@@ -1,0 +1,605 @@
+// NLR identification of the basic Maxwell Slip model (see include/friction/nlr.hpp).
+#include "friction/nlr.hpp"
+
+#include <ceres/ceres.h>
+#include <nlopt.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "friction/initial_state.hpp"
+#include "slip_regression.hpp"
+
+namespace friction {
+namespace {
+
+struct Data {
+  std::span<const double> x;
+  std::span<const double> force;
+  Eigen::VectorXd y;  // force / scale
+  double scale = 1;   // rms of the force
+  detail::StickBreaking sb{1, 2};
+};
+
+struct VpValue {
+  Eigen::VectorXd r;
+  Eigen::VectorXd k;
+  std::vector<int> at_bound;
+};
+
+// Storage reused from one evaluation to the next: an identification evaluates the same sizes
+// hundreds of times, and fresh N x M matrices every time cost more in page faults than the
+// arithmetic.
+struct Workspace {
+  detail::OperatorTrajectories traj;
+  detail::Projector proj;
+  Eigen::MatrixXd phi, a, w, dr, jd, jr, jac;
+  VpValue v;
+};
+
+// Projected residual and, optionally (ws.jac), its exact Jacobian w.r.t. (s, rho).
+const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<const double> rho,
+                           bool with_jacobian, Workspace& ws) {
+  const std::size_t m = s.size();
+  const Eigen::Index mi = static_cast<Eigen::Index>(m);
+  const std::vector<double> thr = d.sb.thresholds(s);
+  std::vector<double> init(m);
+  for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
+  auto& traj = ws.traj;
+  detail::operator_trajectories(thr, init, d.x, with_jacobian, traj);
+  VpValue& v = ws.v;
+  const Eigen::VectorXd lo = Eigen::VectorXd::Zero(mi);
+  const Eigen::VectorXd hi = Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity());
+  v.k = detail::box_least_squares(traj.delta, d.y, lo, hi, &v.at_bound);
+  v.r = d.y;
+  v.r.noalias() -= traj.delta * v.k;
+  if (!with_jacobian) return v;
+  const Eigen::Index n = traj.delta.rows();
+  ws.jd.setZero(n, mi);
+  ws.jr.setZero(n, mi);
+  std::vector<Eigen::Index> free;
+  for (Eigen::Index i = 0; i < mi; ++i)
+    if (!v.at_bound[static_cast<std::size_t>(i)]) free.push_back(i);
+  if (!free.empty()) {
+    const Eigen::Index nf = static_cast<Eigen::Index>(free.size());
+    if (nf == mi) {
+      ws.proj.compute(traj.delta);
+    } else {
+      ws.phi.resize(n, nf);
+      for (Eigen::Index f = 0; f < nf; ++f) ws.phi.col(f) = traj.delta.col(free[static_cast<std::size_t>(f)]);
+      ws.proj.compute(ws.phi);
+    }
+    // Columns: d/dDelta_i then d/drho_i for every free operator, all projected at once.
+    ws.a.resize(n, 2 * nf);
+    ws.w.setZero(nf, 2 * nf);
+    for (Eigen::Index f = 0; f < nf; ++f) {
+      const Eigen::Index i = free[static_cast<std::size_t>(f)];
+      const double ki = v.k(i), ri = rho[static_cast<std::size_t>(i)], di = thr[static_cast<std::size_t>(i)];
+      ws.a.col(f) = traj.d_threshold.col(i) + ri * traj.d_initial.col(i);
+      ws.a.col(nf + f) = di * traj.d_initial.col(i);
+      ws.w(f, f) = ws.a.col(f).dot(v.r);
+      ws.w(f, nf + f) = ws.a.col(nf + f).dot(v.r);
+      ws.a.col(f) *= ki;
+      ws.a.col(nf + f) *= ki;
+    }
+    ws.dr = ws.proj.derivatives(ws.a, ws.w);
+    for (Eigen::Index f = 0; f < nf; ++f) {
+      const Eigen::Index i = free[static_cast<std::size_t>(f)];
+      ws.jd.col(i) = ws.dr.col(f);
+      ws.jr.col(i) = ws.dr.col(nf + f);
+    }
+  }
+  ws.jac.resize(n, 2 * mi);
+  ws.jac.leftCols(mi).noalias() = ws.jd * d.sb.jacobian(s);
+  ws.jac.rightCols(mi) = ws.jr;
+  return v;
+}
+
+double percent_of(const Eigen::VectorXd& r) {
+  return 100.0 * r.squaredNorm() / static_cast<double>(r.size());
+}
+
+class VpCost final : public ceres::CostFunction {
+ public:
+  VpCost(const Data& d, int m) : d_(d), m_(m) {
+    set_num_residuals(static_cast<int>(d.y.size()));
+    mutable_parameter_block_sizes()->push_back(m);
+    mutable_parameter_block_sizes()->push_back(m);
+  }
+  bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
+    const std::size_t m = static_cast<std::size_t>(m_);
+    const auto& v = vp_evaluate(d_, {p[0], m}, {p[1], m}, jacobians != nullptr, ws_);
+    Eigen::Map<Eigen::VectorXd>(residuals, v.r.size()) = v.r;
+    if (jacobians) {
+      for (int b = 0; b < 2; ++b)
+        if (jacobians[b]) {
+          Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+              jacobians[b], ws_.jac.rows(), m_) = ws_.jac.middleCols(b * m_, m_);
+        }
+    }
+    return true;
+  }
+
+ private:
+  const Data& d_;
+  int m_;
+  mutable Workspace ws_;
+};
+
+class JointCost final : public ceres::CostFunction {
+ public:
+  enum Mode { StickBreaking, LogThreshold };
+  JointCost(const Data& d, int m, Mode mode, std::vector<double> rho = {})
+      : d_(d), m_(m), mode_(mode), rho_(std::move(rho)) {
+    set_num_residuals(static_cast<int>(d.y.size()));
+    mutable_parameter_block_sizes()->push_back(m);
+    mutable_parameter_block_sizes()->push_back(m);
+    if (mode == StickBreaking) mutable_parameter_block_sizes()->push_back(m);
+  }
+  bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
+    const std::size_t m = static_cast<std::size_t>(m_);
+    std::vector<double> thr(m), rho(m);
+    if (mode_ == StickBreaking) {
+      thr = d_.sb.thresholds({p[1], m});
+      rho.assign(p[2], p[2] + m);
+    } else {
+      for (std::size_t i = 0; i < m; ++i) thr[i] = std::exp(p[1][i]);
+      rho = rho_;
+    }
+    std::vector<double> init(m);
+    for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
+    const auto traj = detail::operator_trajectories(thr, init, d_.x, jacobians != nullptr);
+    Eigen::VectorXd k(m_);
+    for (int i = 0; i < m_; ++i) k(i) = std::exp(p[0][i]);
+    const Eigen::Index n = traj.delta.rows();
+    Eigen::Map<Eigen::VectorXd> res(residuals, n);
+    res = d_.y - traj.delta * k;
+    if (!res.allFinite()) return false;  // a trial step too far: Ceres shrinks the region
+    if (!jacobians) return true;
+    using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    Eigen::MatrixXd jk(n, m_), jd(n, m_), jr(n, m_);
+    for (int i = 0; i < m_; ++i) {
+      const auto ii = static_cast<std::size_t>(i);
+      jk.col(i) = -k(i) * traj.delta.col(i);
+      jd.col(i) = -k(i) * (traj.d_threshold.col(i) + rho[ii] * traj.d_initial.col(i));
+      jr.col(i) = -k(i) * thr[ii] * traj.d_initial.col(i);
+    }
+    if (jacobians[0]) Eigen::Map<RowMajor>(jacobians[0], n, m_) = jk;
+    if (mode_ == StickBreaking) {
+      if (jacobians[1]) Eigen::Map<RowMajor>(jacobians[1], n, m_) = jd * d_.sb.jacobian({p[1], m});
+      if (jacobians[2]) Eigen::Map<RowMajor>(jacobians[2], n, m_) = jr;
+    } else if (jacobians[1]) {
+      for (int i = 0; i < m_; ++i) jd.col(i) *= thr[static_cast<std::size_t>(i)];
+      Eigen::Map<RowMajor>(jacobians[1], n, m_) = jd;
+    }
+    return true;
+  }
+
+ private:
+  const Data& d_;
+  int m_;
+  Mode mode_;
+  std::vector<double> rho_;
+};
+
+struct Fit {
+  std::vector<double> s, rho;
+  Eigen::VectorXd k;
+  double percent = std::numeric_limits<double>::infinity();
+  double start_percent = 0;
+  bool converged = false;
+  int iterations = 0;
+  std::string message;
+};
+
+ceres::Solver::Options solver_options(const NlrOptions& o) {
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;  // robust to the zero columns of inactive operators
+  so.max_num_iterations = o.max_iterations;
+  so.function_tolerance = o.function_tolerance;
+  so.gradient_tolerance = 1e-12;
+  so.parameter_tolerance = 1e-10;
+  so.num_threads = 1;
+  so.logging_type = ceres::SILENT;
+  so.minimizer_progress_to_stdout = false;
+  // Non-monotonic steps let LM cross the small ridges of this piecewise-smooth cost: on the
+  // ten-operator benchmark record they halved the iterations and reached a lower minimum.
+  so.use_nonmonotonic_steps = true;
+  return so;
+}
+
+// Initial rho for thresholds: stiffnesses by NNLS from the virgin state, then the initial-state
+// estimate for those parameters.
+std::vector<double> start_rho(const Data& d, const std::vector<double>& thr) {
+  const std::size_t m = thr.size();
+  const auto traj = detail::operator_trajectories(thr, std::vector<double>(m, 0.0), d.x, false);
+  const Eigen::Index mi = static_cast<Eigen::Index>(m);
+  const Eigen::VectorXd k = detail::box_least_squares(
+      traj.delta, d.y, Eigen::VectorXd::Zero(mi),
+      Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity()));
+  Eigen::MatrixXd filter = k;
+  if (filter.norm() == 0.0) return std::vector<double>(m, 0.0);
+  const auto init = estimate_initial_deflections(
+      d.x, std::span<const double>(d.y.data(), static_cast<std::size_t>(d.y.size())), thr, filter, {},
+      InitialStateOptions::quick());
+  std::vector<double> rho(m);
+  for (std::size_t i = 0; i < m; ++i) rho[i] = std::clamp(init[i] / thr[i], -1.0, 1.0);
+  return rho;
+}
+
+Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho,
+                 const NlrOptions& o) {
+  const int m = static_cast<int>(s.size());
+  for (double& v : s) v = std::clamp(v, 0.0, 1.0);
+  Fit fit;
+  ceres::Problem::Options po;
+  ceres::Problem problem(po);
+  std::vector<double> logk;
+  if (o.solver == NlrSolver::VariableProjection) {
+    problem.AddResidualBlock(new VpCost(d, m), nullptr, s.data(), rho.data());
+  } else {
+    Workspace ws;
+    const auto& v = vp_evaluate(d, s, rho, false, ws);
+    const double kmax = std::max(v.k.maxCoeff(), 1e-300);
+    for (int i = 0; i < m; ++i) logk.push_back(std::log(std::max(v.k(i), 1e-6 * kmax)));
+    problem.AddResidualBlock(new JointCost(d, m, JointCost::StickBreaking), nullptr, logk.data(),
+                             s.data(), rho.data());
+  }
+  for (int i = 0; i < m; ++i) {
+    problem.SetParameterLowerBound(s.data(), i, 0.0);
+    problem.SetParameterUpperBound(s.data(), i, 1.0);
+    problem.SetParameterLowerBound(rho.data(), i, -1.0);
+    problem.SetParameterUpperBound(rho.data(), i, 1.0);
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options(o), &problem, &summary);
+  const double n = static_cast<double>(d.y.size());
+  fit.start_percent = 100.0 * 2.0 * summary.initial_cost / n;
+  fit.converged = summary.termination_type == ceres::CONVERGENCE;
+  fit.iterations = static_cast<int>(summary.iterations.size());
+  fit.message = summary.message;
+  fit.s = s;
+  fit.rho = rho;
+  // Report the concentrated cost (for the joint solver too, stiffnesses re-solved by NNLS: the
+  // same number the selection compares).
+  Workspace ws;
+  const auto& v = vp_evaluate(d, s, rho, false, ws);
+  fit.k = v.k;
+  fit.percent = percent_of(v.r);
+  if (o.solver == NlrSolver::Joint) {
+    const double joint = 100.0 * 2.0 * summary.final_cost / n;
+    if (joint < fit.percent) {  // keep the joint stiffnesses when they are better
+      fit.percent = joint;
+      fit.k.resize(m);
+      for (int i = 0; i < m; ++i) fit.k(i) = std::exp(logk[static_cast<std::size_t>(i)]);
+    }
+  }
+  return fit;
+}
+
+std::vector<double> clamp_sorted(std::vector<double> t, double lo, double hi) {
+  for (double& v : t) v = std::clamp(v, lo, hi);
+  std::sort(t.begin(), t.end());
+  return t;
+}
+
+struct Scales {
+  double q, travel, presliding;
+};
+
+// Fit M operators from the automatic starts, with the global stage when they disagree.
+Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previous,
+                  const Scales& sc, const NlrOptions& o, IdentificationReport& rep) {
+  std::vector<std::pair<std::string, std::vector<double>>> starts;
+  std::vector<double> quant(m);
+  for (std::size_t j = 0; j < m; ++j)
+    quant[j] = 0.5 * travel_at_force_fraction(d.x, d.force, (static_cast<double>(j) + 0.5) /
+                                                                   static_cast<double>(m));
+  quant = clamp_sorted(quant, sc.q, sc.travel);
+  starts.emplace_back("force-quantiles", quant);
+  {
+    const double top = std::clamp(0.5 * sc.presliding, sc.q, sc.travel);
+    const double bottom = std::min(quant.front(), top / 4.0);
+    std::vector<double> geo(m);
+    for (std::size_t j = 0; j < m; ++j)
+      geo[j] = m == 1 ? std::sqrt(bottom * top)
+                      : bottom * std::pow(top / bottom, static_cast<double>(j) / static_cast<double>(m - 1));
+    starts.emplace_back("geometric", clamp_sorted(geo, sc.q, sc.travel));
+  }
+  if (previous && !previous->empty()) {
+    std::vector<double> ext;
+    ext.push_back(std::max(sc.q, previous->front() / 4.0));
+    ext.insert(ext.end(), previous->begin(), previous->end());
+    ext.push_back(std::min(sc.travel, previous->back() * 4.0));
+    std::size_t best_gap = 0;
+    double ratio = 0;
+    for (std::size_t g = 0; g + 1 < ext.size(); ++g)
+      if (ext[g + 1] / ext[g] > ratio) ratio = ext[g + 1] / ext[g], best_gap = g;
+    std::vector<double> warm = *previous;
+    warm.push_back(std::sqrt(ext[best_gap] * ext[best_gap + 1]));
+    starts.emplace_back("warm", clamp_sorted(warm, sc.q, sc.travel));
+  }
+
+  Fit best;
+  std::vector<double> minima;
+  auto record = [&](const std::string& kind, const std::vector<double>& thr0, const Fit& f) {
+    StartLog log;
+    log.operators = m;
+    log.kind = kind;
+    log.start_thresholds = thr0;
+    log.start_percent = f.start_percent;
+    log.final_percent = f.percent;
+    log.final_thresholds = d.sb.thresholds(f.s);
+    log.distinct = std::none_of(minima.begin(), minima.end(), [&](double v) {
+      return std::abs(v - f.percent) <= o.stall_tolerance * std::max(v, f.percent);
+    });
+    if (log.distinct) minima.push_back(f.percent);
+    rep.starts.push_back(std::move(log));
+    ++rep.convergence.local_searches;
+    if (f.percent < best.percent) best = f;
+  };
+  for (const auto& [kind, thr] : starts) {
+    const Fit f = local_search(d, d.sb.coordinates(thr), start_rho(d, thr), o);
+    record(kind, thr, f);
+  }
+
+  if (o.global_stage && minima.size() > 1) {
+    // The starts stalled in different minima: NLopt's controlled random search over the unit box
+    // of s, on the concentrated cost with the best initial state so far, then a Ceres polish.
+    const unsigned dim = static_cast<unsigned>(m);
+    nlopt::opt opt(nlopt::GN_CRS2_LM, dim);
+    opt.set_lower_bounds(std::vector<double>(m, 0.0));
+    opt.set_upper_bounds(std::vector<double>(m, 1.0));
+    opt.set_maxeval(o.global_evaluations > 0 ? o.global_evaluations : static_cast<int>(40 * m));
+    nlopt::srand(o.seed);
+    struct Ctx {
+      const Data* d;
+      std::vector<double> rho;
+      std::vector<double> best_s;
+      double best = std::numeric_limits<double>::infinity();
+      Workspace ws;
+    } ctx{&d, best.rho, best.s, best.percent, {}};
+    opt.set_min_objective(
+        [](const std::vector<double>& s, std::vector<double>&, void* data) -> double {
+          auto* c = static_cast<Ctx*>(data);
+          const double v = percent_of(vp_evaluate(*c->d, s, c->rho, false, c->ws).r);
+          if (v < c->best) c->best = v, c->best_s = s;
+          return v;
+        },
+        &ctx);
+    std::vector<double> s0 = best.s;
+    double f0 = 0;
+    try {
+      opt.optimize(s0, f0);
+    } catch (const std::exception&) {
+      // NLopt stops on round-off or budget; the best point seen is kept in ctx.
+    }
+    const std::vector<double> thr = d.sb.thresholds(ctx.best_s);
+    const Fit f = local_search(d, ctx.best_s, start_rho(d, thr), o);
+    record("nlopt-crs2", thr, f);
+  }
+  return best;
+}
+
+}  // namespace
+
+std::vector<double> nlr_thresholds_from_coordinates(std::span<const double> s, double lower,
+                                                    double upper) {
+  FRICTION_CHECK(lower > 0.0 && upper > lower, "nlr: threshold bounds must satisfy 0 < lower < upper");
+  return detail::StickBreaking{lower, upper}.thresholds(s);
+}
+
+std::vector<double> nlr_coordinates_from_thresholds(std::span<const double> thresholds,
+                                                    double lower, double upper) {
+  FRICTION_CHECK(lower > 0.0 && upper > lower, "nlr: threshold bounds must satisfy 0 < lower < upper");
+  return detail::StickBreaking{lower, upper}.coordinates({thresholds.begin(), thresholds.end()});
+}
+
+void nlr_projected_residual(std::span<const double> x, std::span<const double> force,
+                            double lower, double upper, std::span<const double> s,
+                            std::span<const double> rho, Eigen::VectorXd& residual,
+                            Eigen::MatrixXd* jacobian, Eigen::VectorXd* stiffness) {
+  FRICTION_CHECK(x.size() == force.size() && !x.empty(), "nlr: lengths differ");
+  FRICTION_CHECK(s.size() == rho.size() && !s.empty(), "nlr: s and rho sizes differ");
+  FRICTION_CHECK(lower > 0.0 && upper > lower, "nlr: threshold bounds must satisfy 0 < lower < upper");
+  Data d;
+  d.x = x;
+  d.force = force;
+  const Eigen::Map<const Eigen::VectorXd> f(force.data(), static_cast<Eigen::Index>(force.size()));
+  d.scale = std::sqrt(f.squaredNorm() / static_cast<double>(f.size()));
+  FRICTION_CHECK(d.scale > 0.0, "nlr: the force is identically zero");
+  d.y = f / d.scale;
+  d.sb = detail::StickBreaking{lower, upper};
+  Workspace ws;
+  const auto& v = vp_evaluate(d, s, rho, jacobian != nullptr, ws);
+  residual = v.r;
+  if (jacobian) *jacobian = ws.jac;
+  if (stiffness) *stiffness = v.k * d.scale;
+}
+
+NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const double> x,
+                                std::span<const double> force, const NlrOptions& o) {
+  const auto clock_start = std::chrono::steady_clock::now();
+  FRICTION_CHECK(time.size() == x.size() && x.size() == force.size(),
+                 "identify_maxwell_slip: time, displacement and force lengths differ");
+  FRICTION_CHECK(x.size() >= 20, "identify_maxwell_slip: ", x.size(),
+                 " samples are too few (at least 20)");
+  FRICTION_CHECK(o.operators > 0 || o.max_operators > 0,
+                 "identify_maxwell_slip: max_operators must be >= 1");
+  for (std::size_t k = 0; k < x.size(); ++k)
+    FRICTION_CHECK(std::isfinite(x[k]) && std::isfinite(force[k]),
+                   "identify_maxwell_slip: sample ", k, " is not finite");
+
+  Data d;
+  d.x = x;
+  d.force = force;
+  const Eigen::Map<const Eigen::VectorXd> f(force.data(), static_cast<Eigen::Index>(force.size()));
+  const double sss = f.squaredNorm();
+  FRICTION_CHECK(sss > 0.0, "identify_maxwell_slip: the force is identically zero");
+  const double n = static_cast<double>(x.size());
+  d.scale = std::sqrt(sss / n);
+  d.y = f / d.scale;
+
+  NlrResult result;
+  IdentificationReport& rep = result.report;
+  Scales sc;
+  sc.q = displacement_resolution(x);
+  sc.travel = largest_travel(x);
+  FRICTION_CHECK(sc.travel > 2.0 * sc.q, "identify_maxwell_slip: the displacement hardly moves");
+  sc.presliding = std::clamp(travel_at_force_fraction(x, force, 0.95), 2.0 * sc.q, 2.0 * sc.travel);
+  rep.displacement_resolution = sc.q;
+  rep.largest_travel = sc.travel;
+  rep.presliding_travel = sc.presliding;
+  d.sb = detail::StickBreaking{sc.q, sc.travel};
+
+  const std::size_t m_lo = o.operators > 0 ? o.operators : 1;
+  const std::size_t m_hi = o.operators > 0 ? o.operators : o.max_operators;
+  std::vector<Fit> fits;
+  std::vector<double> previous;
+  double best_bic = std::numeric_limits<double>::infinity();
+  std::size_t best_index = 0;
+  for (std::size_t m = m_lo; m <= m_hi; ++m) {
+    Fit fit = fit_operators(d, m, previous.empty() ? nullptr : &previous, sc, o, rep);
+    previous = d.sb.thresholds(fit.s);
+    SelectionRow row;
+    row.operators = m;
+    std::size_t active = 0;
+    for (Eigen::Index i = 0; i < fit.k.size(); ++i) active += fit.k(i) > 0.0;
+    row.parameters = 2 * active;
+    row.rss_sss_percent = fit.percent;
+    row.rss = fit.percent / 100.0 * sss;
+    row.criterion = bayesian_information_criterion(row.rss, x.size(), row.parameters);
+    if (row.criterion < best_bic) best_bic = row.criterion, best_index = fits.size();
+    rep.selection.push_back(row);
+    fits.push_back(std::move(fit));
+  }
+  rep.selection[best_index].selected = true;
+  const Fit& best = fits[best_index];
+
+  // The model: operators whose stiffness went to the bound 0 are removed.
+  const std::vector<double> thr = d.sb.thresholds(best.s);
+  std::vector<double> rho;
+  auto& p = result.parameters;
+  for (std::size_t i = 0; i < thr.size(); ++i) {
+    const double k = best.k(static_cast<Eigen::Index>(i)) * d.scale;
+    if (k > 0.0) {
+      p.stiffness.push_back(k);
+      p.threshold.push_back(thr[i]);
+      rho.push_back(best.rho[i]);
+    } else {
+      std::ostringstream w;
+      w << "operator with threshold " << thr[i] << " m got stiffness 0 (the data want it negative);"
+        << " it was removed";
+      rep.warnings.push_back(w.str());
+    }
+  }
+  FRICTION_CHECK_AS(NumericalError, !p.threshold.empty(),
+                    "identify_maxwell_slip: every stiffness went to zero");
+  const std::size_t m = p.size();
+  if (rep.selection[best_index].operators == m_hi && o.operators == 0 && m_hi > 1)
+    rep.warnings.push_back("the criterion chose the largest M tried (" + std::to_string(m_hi) +
+                           "); a larger max_operators may fit better");
+
+  // Errors of the free run from the estimated initial state (the routine validation uses).
+  std::vector<double> guess(m);
+  for (std::size_t i = 0; i < m; ++i) guess[i] = rho[i] * p.threshold[i];
+  rep.initial_deflections = estimate_initial_deflections(p, x, force, guess);
+  {
+    MaxwellSlip<double> model(p);
+    model.reset(std::span<const double>(rep.initial_deflections));
+    rep.estimation_simulated.resize(x.size());
+    for (std::size_t k = 0; k < x.size(); ++k)
+      rep.estimation_simulated[k] = model.step(Motion<double>{k > 0 ? x[k] - x[k - 1] : 0.0, 0.0, 0.0});
+  }
+  rep.estimation = compute_errors(force, rep.estimation_simulated);
+  rep.noise_sigma = estimate_white_noise_sigma(force);
+  rep.noise_floor_percent = noise_floor_rss_sss_percent(force, rep.noise_sigma);
+  rep.convergence.converged = best.converged;
+  rep.convergence.iterations = best.iterations;
+  rep.convergence.initial_cost = best.start_percent;
+  rep.convergence.final_cost = best.percent;
+  rep.convergence.message = best.message;
+  if (!best.converged) rep.warnings.push_back("local search did not report convergence: " + best.message);
+
+  // Parameters, standard errors, correlations.
+  const Eigen::Index mi = static_cast<Eigen::Index>(m);
+  for (std::size_t i = 0; i < m; ++i)
+    rep.parameters.push_back({"stiffness[" + std::to_string(i + 1) + "]", "N/m", p.stiffness[i], 0, p.stiffness[i], p.stiffness[i]});
+  for (std::size_t i = 0; i < m; ++i)
+    rep.parameters.push_back({"threshold[" + std::to_string(i + 1) + "]", "m", p.threshold[i], 0, p.threshold[i], p.threshold[i]});
+  rep.correlation = Eigen::MatrixXd::Identity(2 * mi, 2 * mi);
+  if (o.covariance) {
+    std::vector<double> logk(m), logd(m), rho_fixed(m);
+    for (std::size_t i = 0; i < m; ++i) {
+      logk[i] = std::log(p.stiffness[i] / d.scale);
+      logd[i] = std::log(p.threshold[i]);
+      rho_fixed[i] = rep.initial_deflections[i] / p.threshold[i];
+    }
+    ceres::Problem problem;
+    problem.AddResidualBlock(new JointCost(d, static_cast<int>(m), JointCost::LogThreshold, rho_fixed),
+                             nullptr, logk.data(), logd.data());
+    ceres::Covariance::Options co;
+    co.algorithm_type = ceres::DENSE_SVD;
+    co.null_space_rank = 0;
+    co.min_reciprocal_condition_number = 1e-14;
+    co.num_threads = 1;
+    ceres::Covariance cov(co);
+    std::vector<std::pair<const double*, const double*>> blocks{
+        {logk.data(), logk.data()}, {logk.data(), logd.data()}, {logd.data(), logd.data()}};
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> c(2 * mi, 2 * mi);
+    bool ok = false;
+    try {
+      ok = cov.Compute(blocks, &problem) &&
+           cov.GetCovarianceMatrix({logk.data(), logd.data()}, c.data());
+    } catch (const std::exception&) {
+      ok = false;
+    }
+    const double dof = std::max(1.0, n - 2.0 * static_cast<double>(m));
+    const double sigma2 = rep.estimation.rss / (d.scale * d.scale) / dof;
+    if (ok && c.allFinite()) {
+      c *= sigma2;
+      for (Eigen::Index a = 0; a < 2 * mi; ++a) {
+        auto& est = rep.parameters[static_cast<std::size_t>(a)];
+        const double se_log = std::sqrt(std::max(0.0, c(a, a)));
+        est.standard_error = est.value * se_log;
+        est.lower95 = est.value * std::exp(-1.96 * se_log);
+        est.upper95 = est.value * std::exp(1.96 * se_log);
+        if (est.upper95 / est.lower95 > 10.0) {
+          std::ostringstream w;
+          w << est.name << ": 95 % interval [" << est.lower95 << ", " << est.upper95 << "] " << est.unit
+            << " spans more than an order of magnitude (poorly identified)";
+          rep.warnings.push_back(w.str());
+        }
+        for (Eigen::Index b = 0; b < 2 * mi; ++b) {
+          const double den = std::sqrt(c(a, a) * c(b, b));
+          rep.correlation(a, b) = den > 0.0 ? c(a, b) / den : (a == b ? 1.0 : 0.0);
+        }
+      }
+      for (Eigen::Index a = 0; a < 2 * mi; ++a)
+        for (Eigen::Index b = a + 1; b < 2 * mi; ++b)
+          if (std::abs(rep.correlation(a, b)) > 0.99)
+            rep.warnings.push_back(rep.parameters[static_cast<std::size_t>(a)].name + " and " +
+                                   rep.parameters[static_cast<std::size_t>(b)].name +
+                                   " are correlated above 0.99 (near-singular)");
+    } else {
+      rep.warnings.push_back(
+          "the parameter covariance is rank-deficient (some parameters are not identifiable from "
+          "this record); standard errors are not available");
+    }
+  }
+  for (std::size_t i = 0; i < m; ++i) {
+    if (p.threshold[i] <= sc.q * 1.01)
+      rep.warnings.push_back("threshold[" + std::to_string(i + 1) +
+                             "] is at the displacement resolution: the operator acts as a relay");
+    if (p.threshold[i] >= sc.travel * 0.99)
+      rep.warnings.push_back("threshold[" + std::to_string(i + 1) +
+                             "] is at the largest travel: the operator acts as a linear spring");
+  }
+  rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  return result;
+}
+
+}  // namespace friction

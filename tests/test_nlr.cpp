@@ -1,0 +1,164 @@
+// NLR identification of the basic Maxwell Slip model: round trip on synthetic records.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <vector>
+
+#include "friction/initial_state.hpp"
+#include "friction/nlr.hpp"
+#include "identification_fixtures.hpp"
+
+namespace {
+
+using namespace friction;
+using friction::testing::four_operator_system;
+using friction::testing::synthetic_record;
+
+constexpr double kSigma = 2e-3;  // N, about 0.5 % of the sliding force 0.42 N
+
+struct RoundTrip {
+  Record estimation, validation;
+  std::vector<double> validation_noise;
+  NlrResult result;
+};
+
+const RoundTrip& round_trip() {
+  static const RoundTrip rt = [] {
+    RoundTrip r;
+    const auto sys = four_operator_system();
+    r.estimation = synthetic_record(sys, 3000, 30e-6, 0, kSigma, 11, {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr);
+    r.validation = synthetic_record(sys, 3000, 25e-6, 1, kSigma, 12, {-1e-6, 3e-6, 0.0, 12e-6},
+                                    &r.validation_noise);
+    NlrOptions o;
+    o.max_operators = 6;
+    r.result = identify_maxwell_slip(r.estimation.time, r.estimation.displacement, r.estimation.force, o);
+    const auto& rep = r.result.report;
+    std::cout << "M table:\n";
+    for (const auto& row : rep.selection)
+      std::cout << "  M=" << row.operators << " rss%=" << row.rss_sss_percent << " BIC=" << row.criterion
+                << (row.selected ? " *" : "") << "\n";
+    for (const auto& p : rep.parameters)
+      std::cout << "  " << p.name << " = " << p.value << " +- " << p.standard_error << " [" << p.lower95
+                << ", " << p.upper95 << "]\n";
+    for (const auto& s : rep.starts)
+      std::cout << "  start M=" << s.operators << " " << s.kind << " " << s.start_percent << " -> "
+                << s.final_percent << (s.distinct ? " distinct" : "") << "\n";
+    for (const auto& w : rep.warnings) std::cout << "  warning: " << w << "\n";
+    std::cout << "  seconds " << rep.seconds << " estimation " << rep.estimation.rss_sss_percent
+              << "% floor " << rep.noise_floor_percent << "%\n";
+    return r;
+  }();
+  return rt;
+}
+
+TEST(Nlr, SelectsTheTrueNumberOfOperators) {
+  const auto& rep = round_trip().result.report;
+  ASSERT_FALSE(rep.selection.empty());
+  std::size_t selected = 0;
+  for (const auto& row : rep.selection)
+    if (row.selected) selected = row.operators;
+  EXPECT_EQ(selected, 4u);
+  EXPECT_EQ(round_trip().result.parameters.size(), 4u);
+}
+
+TEST(Nlr, RecoversTheParametersWithinTheir95PercentIntervals) {
+  const auto& r = round_trip().result;
+  const auto sys = four_operator_system();
+  ASSERT_EQ(r.parameters.size(), 4u);
+  ASSERT_EQ(r.report.parameters.size(), 8u);
+  for (std::size_t i = 0; i < 4; ++i) {
+    const auto& k = r.report.parameters[i];
+    const auto& d = r.report.parameters[4 + i];
+    EXPECT_GT(k.standard_error, 0.0);
+    EXPECT_GT(d.standard_error, 0.0);
+    EXPECT_LE(k.lower95, sys.stiffness[i]) << k.name;
+    EXPECT_GE(k.upper95, sys.stiffness[i]) << k.name;
+    EXPECT_LE(d.lower95, sys.threshold[i]) << d.name;
+    EXPECT_GE(d.upper95, sys.threshold[i]) << d.name;
+  }
+}
+
+TEST(Nlr, ValidationErrorIsAtTheNoiseFloor) {
+  const auto& rt = round_trip();
+  const auto run = free_run_maxwell_slip(rt.result.parameters, rt.validation.time,
+                                         rt.validation.displacement, rt.validation.force);
+  const double floor = 100.0 * friction::testing::sum_of_squares(rt.validation_noise) /
+                       friction::testing::sum_of_squares(rt.validation.force);
+  std::cout << "validation " << run.errors.rss_sss_percent << "% floor " << floor << "%\n";
+  EXPECT_LE(run.errors.rss_sss_percent, 1.2 * floor);
+  // and the estimation error is at its own floor too (the fit is not stuck in a local minimum)
+  EXPECT_LE(rt.result.report.estimation.rss_sss_percent, 1.2 * rt.result.report.noise_floor_percent + 1e-3);
+}
+
+TEST(Nlr, ConstraintsHold) {
+  const auto& r = round_trip().result;
+  const auto& rep = r.report;
+  for (std::size_t i = 0; i < r.parameters.size(); ++i) {
+    EXPECT_GT(r.parameters.stiffness[i], 0.0);
+    EXPECT_GE(r.parameters.threshold[i], rep.displacement_resolution);
+    EXPECT_LE(r.parameters.threshold[i], rep.largest_travel);
+    if (i > 0) {
+      EXPECT_GE(r.parameters.threshold[i], r.parameters.threshold[i - 1]);
+    }
+  }
+  for (const auto& s : rep.starts)
+    for (std::size_t i = 0; i < s.final_thresholds.size(); ++i) {
+      EXPECT_GE(s.final_thresholds[i], rep.displacement_resolution * (1 - 1e-12));
+      EXPECT_LE(s.final_thresholds[i], rep.largest_travel * (1 + 1e-12));
+    }
+  EXPECT_EQ(rep.initial_state, "estimated");
+  for (double v : rep.correlation.reshaped()) EXPECT_TRUE(std::isfinite(v));
+}
+
+TEST(Nlr, ProjectedJacobianMatchesFiniteDifferences) {
+  const auto sys = four_operator_system();
+  const auto rec = synthetic_record(sys, 1500, 30e-6, 0, kSigma, 5, {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr);
+  const double lo = displacement_resolution(rec.displacement);
+  const double hi = largest_travel(rec.displacement);
+  // A point away from the optimum (large residual, so both Golub-Pereyra terms matter).
+  const std::vector<double> start{1.3e-6, 2.5e-6, 8e-6, 13e-6};
+  const std::vector<double> s = nlr_coordinates_from_thresholds(start, lo, hi);
+  const std::vector<double> rho{0.3, -0.4, 0.2, -0.5};
+  Eigen::VectorXd r0;
+  Eigen::MatrixXd jac;
+  nlr_projected_residual(rec.displacement, rec.force, lo, hi, s, rho, r0, &jac);
+  ASSERT_EQ(jac.cols(), 8);
+  ASSERT_TRUE(jac.allFinite());
+  for (int p = 0; p < 8; ++p) {
+    std::vector<double> sp = s, sm = s, rp = rho, rm = rho;
+    const double h = 1e-7;
+    if (p < 4) sp[p] += h, sm[p] -= h;
+    else rp[p - 4] += h, rm[p - 4] -= h;
+    Eigen::VectorXd fp, fm;
+    nlr_projected_residual(rec.displacement, rec.force, lo, hi, sp, rp, fp, nullptr);
+    nlr_projected_residual(rec.displacement, rec.force, lo, hi, sm, rm, fm, nullptr);
+    const Eigen::VectorXd fd = (fp - fm) / (2 * h);
+    EXPECT_GT(fd.norm(), 0.0) << "parameter " << p << " has no effect";
+    EXPECT_LE((jac.col(p) - fd).norm(), 1e-4 * fd.norm() + 1e-9) << "parameter " << p;
+  }
+}
+
+TEST(Nlr, FixedOrderAndJointSolverAgree) {
+  const auto& rt = round_trip();
+  NlrOptions o;
+  o.operators = 4;
+  o.solver = NlrSolver::Joint;
+  o.covariance = false;
+  const auto joint = identify_maxwell_slip(rt.estimation.time, rt.estimation.displacement,
+                                           rt.estimation.force, o);
+  ASSERT_EQ(joint.report.selection.size(), 1u);
+  EXPECT_NEAR(joint.report.estimation.rss_sss_percent, rt.result.report.estimation.rss_sss_percent,
+              0.05 * rt.result.report.estimation.rss_sss_percent);
+}
+
+TEST(Nlr, RejectsUnusableRecords) {
+  std::vector<double> t(100), x(100, 1e-6), f(100, 0.1);
+  for (std::size_t k = 0; k < 100; ++k) t[k] = 1e-3 * static_cast<double>(k);
+  EXPECT_THROW(identify_maxwell_slip(t, x, f), InvalidParameter);  // no motion
+  std::vector<double> shorter(50, 0.0);
+  EXPECT_THROW(identify_maxwell_slip(t, shorter, f), InvalidParameter);
+}
+
+}  // namespace
