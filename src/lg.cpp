@@ -1,0 +1,954 @@
+// LG identification of the LuGre model (see include/friction/lg.hpp for the method).
+#include "friction/lg.hpp"
+
+#include <ceres/ceres.h>
+#include <nlopt.hpp>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <utility>
+
+#include "friction/error.hpp"
+#include "friction/motion.hpp"
+
+namespace friction {
+namespace {
+
+constexpr std::size_t kP = LuGreParameters<double>::kSize;  // 7
+constexpr double kStateBound = 1.5;                         // |u| <= 1.5, z0 = u z_ref
+constexpr double kHuge = 1e30;
+
+using Theta = std::array<double, kP>;
+
+double median(std::vector<double> v) {
+  FRICTION_ASSERT(!v.empty());
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  return v[mid];
+}
+
+double quantile(std::vector<double> v, double q) {
+  FRICTION_ASSERT(!v.empty());
+  std::sort(v.begin(), v.end());
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const std::size_t lo = static_cast<std::size_t>(std::floor(pos));
+  const std::size_t hi = std::min(lo + 1, v.size() - 1);
+  return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
+}
+
+// Per-sample motion of the record (motion.hpp): sample 0 has dt = 0.
+std::vector<Motion<double>> motions_of(std::span<const double> time, std::span<const double> x) {
+  std::vector<Motion<double>> m(x.size(), Motion<double>{0.0, 0.0, 0.0});
+  for (std::size_t k = 1; k < x.size(); ++k) {
+    const double dt = time[k] - time[k - 1], dx = x[k] - x[k - 1];
+    m[k] = Motion<double>{dx, dx / dt, dt};
+  }
+  return m;
+}
+
+// Free run with the exact step; T = double or a Jet.
+template <typename T>
+void run_exact(const LuGreParameters<T>& p, const std::vector<Motion<double>>& m, const T& z0,
+               T* out) {
+  LuGre<T> model(p);
+  model.reset(z0);
+  for (std::size_t k = 0; k < m.size(); ++k)
+    out[k] = model.step(Motion<T>{T(m[k].dx), T(m[k].velocity), T(m[k].dt)});
+}
+
+double rest_deflection(const LuGreParameters<double>& p) {
+  return std::max(p.coulomb, p.static_force) / p.stiffness;
+}
+
+LuGreParameters<double> from_log(std::span<const double> log_theta, StribeckShape shape) {
+  Theta t;
+  for (std::size_t j = 0; j < kP; ++j) t[j] = std::exp(log_theta[j]);
+  return LuGreParameters<double>::from_array(t, shape);
+}
+
+bool finite_parameters(const LuGreParameters<double>& p) {
+  for (double v : p.to_array())
+    if (!std::isfinite(v) || v <= 0.0) return false;
+  return true;
+}
+
+// RSS/SSS % of a free run (exact step), +inf-like when the parameters are unusable.
+struct Objective {
+  std::span<const double> force;
+  std::vector<Motion<double>> motions;
+  double sss = 0;
+  StribeckShape shape = StribeckShape::Rational;
+  mutable std::vector<double> buffer;
+
+  double percent(const LuGreParameters<double>& p, double z0) const {
+    if (!finite_parameters(p) || !std::isfinite(z0)) return kHuge;
+    buffer.resize(force.size());
+    run_exact(p, motions, z0, buffer.data());
+    double rss = 0;
+    for (std::size_t k = 0; k < force.size(); ++k) {
+      const double e = force[k] - buffer[k];
+      rss += e * e;
+    }
+    return std::isfinite(rss) ? 100.0 * rss / sss : kHuge;
+  }
+  // x = (log theta, u), z0 = u times the rest deflection of those parameters.
+  double percent(std::span<const double> v) const {
+    const auto p = from_log(v.first(kP), shape);
+    return percent(p, v[kP] * rest_deflection(p));
+  }
+};
+
+// ---------------------------------------------------------------------------------------------
+// Step 1: the data-driven start.
+
+struct Segment {
+  std::size_t a = 0, b = 0;  // reversal indices
+  double dir = 1;            // sign of the travel
+  double swing = 0;          // max g
+  std::size_t i95 = 0;       // first index with g >= 0.95 swing
+  bool slides = false;
+};
+
+std::vector<std::size_t> turning_points(std::span<const double> x, double h) {
+  std::vector<std::size_t> turns{0};
+  int dir = 0;
+  std::size_t ext = 0;
+  for (std::size_t t = 1; t < x.size(); ++t) {
+    if (dir == 0) {
+      if (x[t] - x[0] > h)
+        dir = +1, ext = t;
+      else if (x[0] - x[t] > h)
+        dir = -1, ext = t;
+    } else if (dir > 0) {
+      if (x[t] > x[ext])
+        ext = t;
+      else if (x[ext] - x[t] > h)
+        turns.push_back(ext), dir = -1, ext = t;
+    } else {
+      if (x[t] < x[ext])
+        ext = t;
+      else if (x[t] - x[ext] > h)
+        turns.push_back(ext), dir = +1, ext = t;
+    }
+  }
+  if (turns.back() != x.size() - 1) turns.push_back(x.size() - 1);
+  return turns;
+}
+
+std::vector<Segment> segments_of(std::span<const double> x, std::span<const double> force) {
+  const double range = 2.0 * largest_travel(x);
+  const double h = std::max(3.0 * displacement_resolution(x), 1e-4 * range);
+  const auto turns = turning_points(x, h);
+  std::vector<Segment> segs;
+  for (std::size_t s = 0; s + 1 < turns.size(); ++s) {
+    Segment g;
+    g.a = turns[s];
+    g.b = turns[s + 1];
+    if (g.b <= g.a + 1) continue;
+    g.dir = x[g.b] >= x[g.a] ? 1.0 : -1.0;
+    const double travel = std::abs(x[g.b] - x[g.a]);
+    if (travel <= h) continue;
+    for (std::size_t t = g.a; t <= g.b; ++t)
+      g.swing = std::max(g.swing, g.dir * (force[t] - force[g.a]));
+    g.i95 = g.b;
+    for (std::size_t t = g.a; t <= g.b; ++t)
+      if (g.dir * (force[t] - force[g.a]) >= 0.95 * g.swing) {
+        g.i95 = t;
+        break;
+      }
+    // A plateau over the second half of the travel: the segment slides.
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    std::size_t count = 0;
+    for (std::size_t t = g.a; t <= g.b; ++t)
+      if (std::abs(x[t] - x[g.a]) >= 0.5 * travel) {
+        lo = std::min(lo, g.dir * force[t]);
+        hi = std::max(hi, g.dir * force[t]);
+        ++count;
+      }
+    g.slides = g.swing > 0.0 && count >= 2 && hi - lo <= 0.25 * g.swing;
+    segs.push_back(g);
+  }
+  return segs;
+}
+
+// Least-squares slope and intercept of y on s.
+std::pair<double, double> line_fit(const std::vector<double>& s, const std::vector<double>& y) {
+  const double n = static_cast<double>(s.size());
+  const double ms = std::accumulate(s.begin(), s.end(), 0.0) / n;
+  const double my = std::accumulate(y.begin(), y.end(), 0.0) / n;
+  double sxx = 0, sxy = 0;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    sxx += (s[i] - ms) * (s[i] - ms);
+    sxy += (s[i] - ms) * (y[i] - my);
+  }
+  const double slope = sxx > 0.0 ? sxy / sxx : 0.0;
+  return {slope, my - slope * ms};
+}
+
+void check_record(std::span<const double> time, std::span<const double> x,
+                  std::span<const double> force, const char* who) {
+  FRICTION_CHECK(time.size() == x.size() && x.size() == force.size(), who,
+                 ": time, displacement and force lengths differ");
+  FRICTION_CHECK(x.size() >= 20, who, ": ", x.size(), " samples are too few (at least 20)");
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    FRICTION_CHECK(std::isfinite(time[k]) && std::isfinite(x[k]) && std::isfinite(force[k]), who,
+                   ": sample ", k, " is not finite");
+    if (k > 0)
+      FRICTION_CHECK(time[k] > time[k - 1], who, ": time must increase strictly (sample ", k, ")");
+  }
+  double sss = 0;
+  for (double f : force) sss += f * f;
+  FRICTION_CHECK(sss > 0.0, who, ": the force is identically zero");
+  FRICTION_CHECK(largest_travel(x) > 0.0, who, ": the displacement never changes");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Step 2: the global stage (NLopt).
+
+struct Box {
+  std::vector<double> lower, upper;  // (log theta, u)
+  std::vector<double> clamp(std::vector<double> v) const {
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = std::clamp(v[i], lower[i], upper[i]);
+    return v;
+  }
+};
+
+Box search_box(const LgStart& st) {
+  const auto& p = st.parameters;
+  const double vmax = st.fastest_sliding_speed;
+  Box b;
+  auto add = [&](double lo, double hi) {
+    b.lower.push_back(std::log(lo));
+    b.upper.push_back(std::log(hi));
+  };
+  add(p.stiffness / 10.0, p.stiffness * 10.0);
+  add(p.micro_damping * 1e-3, p.micro_damping * 30.0);
+  add(1e-4 * p.coulomb / vmax, std::max(3.0 * p.viscous, p.coulomb / vmax));
+  add(p.coulomb / 3.0, p.coulomb * 3.0);
+  add(p.static_force / 3.0, p.static_force * 3.0);
+  add(std::min(st.slowest_sliding_speed / 10.0, p.stribeck_velocity / 3.0),
+      std::max(10.0 * vmax, 3.0 * p.stribeck_velocity));
+  add(0.3, 6.0);
+  b.lower.push_back(-kStateBound);
+  b.upper.push_back(kStateBound);
+  return b;
+}
+
+struct Point {
+  std::vector<double> v;  // (log theta, u)
+  double percent = kHuge;
+};
+
+Point nlopt_run(nlopt::algorithm algo, const Objective& obj, const Box& box, Point start,
+                int evaluations, unsigned seed) {
+  nlopt::opt opt(algo, static_cast<unsigned>(kP + 1));
+  opt.set_lower_bounds(box.lower);
+  opt.set_upper_bounds(box.upper);
+  opt.set_maxeval(evaluations);
+  if (algo == nlopt::LN_BOBYQA) {
+    opt.set_ftol_rel(1e-9);
+    std::vector<double> step(kP + 1);
+    for (std::size_t i = 0; i <= kP; ++i) step[i] = 0.05 * (box.upper[i] - box.lower[i]);
+    opt.set_initial_step(step);
+  }
+  nlopt::srand(seed);
+  struct Ctx {
+    const Objective* obj;
+    Point best;
+  } ctx{&obj, start};
+  ctx.best.percent = obj.percent(start.v);
+  opt.set_min_objective(
+      [](const std::vector<double>& v, std::vector<double>&, void* data) -> double {
+        auto* c = static_cast<Ctx*>(data);
+        const double f = c->obj->percent(v);
+        if (f < c->best.percent) c->best.percent = f, c->best.v = v;
+        return f;
+      },
+      &ctx);
+  std::vector<double> v = box.clamp(start.v);
+  double f = 0;
+  try {
+    opt.optimize(v, f);
+  } catch (const std::exception&) {
+    // NLopt stops on round-off or a budget; the best point seen is kept in ctx.
+  }
+  return ctx.best;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Step 4: covariance and warnings.
+
+const std::array<const char*, kP> kSymbols{"sigma0", "sigma1", "sigma2", "Fc", "Fs", "vs", "mu"};
+const std::array<const char*, kP> kUnits{"N/m", "N s/m", "N s/m", "N", "N", "m/s", "1"};
+
+// Units as printed after a value in messages (nothing for the dimensionless exponent).
+const std::array<const char*, kP> kUnitText{" N/m", " N s/m", " N s/m", " N", " N", " m/s", ""};
+const char* unit_text(std::size_t j) {
+  return kUnitText[j];
+}
+
+std::string pair_name(std::size_t a, std::size_t b) {
+  return std::string(kLuGreParameterNames[a]) + " (" + kSymbols[a] + ") and " +
+         kLuGreParameterNames[b] + " (" + kSymbols[b] + ")";
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+
+LgStart lugre_start(std::span<const double> time, std::span<const double> x,
+                    std::span<const double> force, StribeckShape shape) {
+  check_record(time, x, force, "lugre_start");
+  const std::size_t n = x.size();
+  const auto motions = motions_of(time, x);
+  const auto segs = segments_of(x, force);
+  LgStart st;
+  st.segments = segs.size();
+  st.presliding.assign(n, false);
+
+  std::vector<double> speed, level;  // sliding samples: |v|, dir F
+  std::vector<double> presliding_speed;
+  for (const auto& g : segs) {
+    const double u95 = std::abs(x[g.i95] - x[g.a]);
+    for (std::size_t t = g.a + 1; t <= g.b; ++t) {
+      const double v = motions[t].velocity;
+      if (!g.slides || t < g.i95) {
+        st.presliding[t] = true;
+        if (v != 0.0) presliding_speed.push_back(std::abs(v));
+        continue;
+      }
+      if (std::abs(x[t] - x[g.a]) >= 1.5 * u95 && v * g.dir > 0.0) {
+        speed.push_back(std::abs(v));
+        level.push_back(g.dir * force[t]);
+      }
+    }
+    st.sliding_segments += g.slides;
+  }
+  st.sliding_samples = speed.size();
+  FRICTION_CHECK(st.sliding_segments > 0 && speed.size() >= 10, "lugre_start: the record ",
+                 st.sliding_segments == 0 ? "never slides" : "hardly slides", " (",
+                 st.sliding_segments, " of ", segs.size(),
+                 " segments between reversals reach a force plateau, ", speed.size(),
+                 " sliding samples): Fc, Fs, vs, mu and sigma2 cannot be identified from "
+                 "presliding alone; excite sliding (strokes longer than the presliding travel)");
+  st.slowest_sliding_speed = quantile(speed, 0.05);
+  st.fastest_sliding_speed = quantile(speed, 0.95);
+  FRICTION_CHECK(st.fastest_sliding_speed > 0.0, "lugre_start: no sliding speed");
+
+  auto& p = st.parameters;
+  p.shape = shape;
+  // Fc and sigma2 from the fastest third of the sliding samples.
+  {
+    const double q67 = quantile(speed, 2.0 / 3.0);
+    std::vector<double> s, y;
+    for (std::size_t i = 0; i < speed.size(); ++i)
+      if (speed[i] >= q67) s.push_back(speed[i]), y.push_back(level[i]);
+    auto [slope, intercept] = line_fit(s, y);
+    if (!(slope > 0.0)) slope = 0.0;
+    std::vector<double> base(s.size());
+    for (std::size_t i = 0; i < s.size(); ++i) base[i] = y[i] - slope * s[i];
+    p.coulomb = median(base);
+    (void)intercept;
+    FRICTION_CHECK(p.coulomb > 0.0, "lugre_start: the sliding force level ", p.coulomb,
+                   " N is not positive: is the force in the model's sign convention (F v > 0 "
+                   "while sliding)?");
+    p.viscous = slope > 0.0 ? slope : 0.01 * p.coulomb / st.fastest_sliding_speed;
+  }
+  // Fs: slowest sliding level, or the breakaway peaks.
+  {
+    const double q10 = quantile(speed, 0.1);
+    std::vector<double> low;
+    for (std::size_t i = 0; i < speed.size(); ++i)
+      if (speed[i] <= q10) low.push_back(level[i] - p.viscous * speed[i]);
+    std::vector<double> peaks;
+    for (const auto& g : segs) {
+      if (!g.slides) continue;
+      double peak = -std::numeric_limits<double>::infinity();
+      for (std::size_t t = g.a + 1; t <= g.b; ++t)
+        peak = std::max(peak, g.dir * force[t] - p.viscous * std::abs(motions[t].velocity));
+      peaks.push_back(peak);
+    }
+    p.static_force = std::max({median(low), median(peaks), 1.01 * p.coulomb});
+  }
+  // Fs and vs: the static curve Fc + (Fs - Fc) w(v; vs, mu = 2) fitted to the sliding levels.
+  {
+    const double observed = p.static_force;
+    double best_cost = std::numeric_limits<double>::infinity();
+    LuGreParameters<double> q = p;
+    q.stribeck_exponent = 2.0;
+    constexpr int kGrid = 61;
+    const double lo = std::log(st.slowest_sliding_speed / 10.0);
+    const double hi = std::log(3.0 * st.fastest_sliding_speed);
+    std::vector<double> w(speed.size());
+    for (int i = 0; i < kGrid; ++i) {
+      q.stribeck_velocity = std::exp(lo + (hi - lo) * i / (kGrid - 1));
+      double ww = 0, wl = 0;
+      for (std::size_t k = 0; k < speed.size(); ++k) {
+        w[k] = stribeck_weight(q, speed[k]);
+        ww += w[k] * w[k];
+        wl += w[k] * (level[k] - p.viscous * speed[k] - p.coulomb);
+      }
+      const double dip =
+          std::clamp(ww > 0.0 ? wl / ww : 0.0, observed - p.coulomb, 2.0 * observed - p.coulomb);
+      double cost = 0;
+      for (std::size_t k = 0; k < speed.size(); ++k) {
+        const double e = level[k] - p.viscous * speed[k] - p.coulomb - dip * w[k];
+        cost += e * e;
+      }
+      if (cost < best_cost) {
+        best_cost = cost;
+        p.stribeck_velocity = q.stribeck_velocity;
+        p.static_force = p.coulomb + dip;
+      }
+    }
+  }
+  // sigma0 and sigma1 from the rise after reversals from sliding: pooled regression of dir F on
+  // the travel u and the speed |v| (each segment with its own intercept) over the travel until g
+  // covers f = 30 % of S.  Leaving steady sliding the bristles go from -s to +s with
+  // dz/dx = 1 + |z|/s, so both coefficients are -2 f / ln(1 - f) = 1.68 times sigma0 and sigma1.
+  {
+    constexpr double kF = 0.3;
+    const double factor = -2.0 * kF / std::log(1.0 - kF);
+    Eigen::Matrix2d a = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d b = Eigen::Vector2d::Zero();
+    std::size_t used = 0;
+    std::vector<double> slopes;  // single-regressor chord slopes of every segment (fallback)
+    for (std::size_t s = 0; s < segs.size(); ++s) {
+      const auto& g = segs[s];
+      if (g.swing <= 0.0) continue;
+      std::vector<double> u, v, y;
+      for (std::size_t t = g.a; t <= g.b; ++t) {
+        if (t > g.a && g.dir * (force[t] - force[g.a]) >= kF * g.swing) break;
+        u.push_back(g.dir * (x[t] - x[g.a]));
+        v.push_back(t > g.a ? std::abs(motions[t].velocity) : 0.0);
+        y.push_back(g.dir * force[t]);
+      }
+      if (u.size() < 3) continue;
+      const double slope = line_fit(u, y).first;
+      if (slope > 0.0) slopes.push_back(slope);
+      if (!(s > 0 && segs[s - 1].slides && segs[s - 1].b == g.a)) continue;
+      const double nu = static_cast<double>(u.size());
+      const double mu_ = std::accumulate(u.begin(), u.end(), 0.0) / nu;
+      const double mv = std::accumulate(v.begin(), v.end(), 0.0) / nu;
+      const double my = std::accumulate(y.begin(), y.end(), 0.0) / nu;
+      for (std::size_t i = 0; i < u.size(); ++i) {
+        const Eigen::Vector2d r(u[i] - mu_, v[i] - mv);
+        a += r * r.transpose();
+        b += r * (y[i] - my);
+      }
+      used += u.size();
+    }
+    bool done = false;
+    if (used >= 6 && a.determinant() > 1e-12 * a(0, 0) * a(1, 1)) {
+      const Eigen::Vector2d c = a.ldlt().solve(b);
+      if (c(0) > 0.0) {
+        p.stiffness = c(0) / factor;
+        p.micro_damping = c(1) > 0.0 ? c(1) / factor : 0.0;
+        st.sigma0_from_sliding_reversals = done = true;
+      }
+    }
+    if (!done) {
+      if (!slopes.empty()) {
+        p.stiffness = median(slopes);
+      } else {
+        // No resolved presliding: the exponential approach covers 95 % of 2 Fs in 3 s(0).
+        const double travel = travel_at_force_fraction(x, force, 0.95);
+        p.stiffness = 3.0 * p.static_force / std::max(travel, displacement_resolution(x));
+      }
+    }
+  }
+  // sigma1 without the regression: 10 % of Fs at the typical presliding speed.
+  st.presliding_speed =
+      presliding_speed.empty() ? st.slowest_sliding_speed : median(presliding_speed);
+  if (!(p.micro_damping > 0.0))
+    p.micro_damping = 0.1 * p.static_force / std::max(st.presliding_speed, 1e-300);
+  p.stribeck_exponent = 2.0;
+  p.validate();
+  return st;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+LgCostFunction::LgCostFunction(std::span<const double> time, std::span<const double> x,
+                               std::span<const double> force, double scale, double z_ref,
+                               StribeckShape shape, LgJacobian jacobian,
+                               const CvodesOptions& cvodes)
+    : time_(time),
+      x_(x),
+      force_(force),
+      scale_(scale),
+      z_ref_(z_ref),
+      shape_(shape),
+      jacobian_(jacobian),
+      cvodes_(cvodes) {
+  FRICTION_CHECK(time.size() == x.size() && x.size() == force.size() && !x.empty(),
+                 "LgCostFunction: lengths differ");
+  motions_ = motions_of(time, x);
+  FRICTION_CHECK(scale > 0.0 && z_ref > 0.0, "LgCostFunction: scale and z_ref must be > 0");
+  cvodes_.sensitivities = true;
+  cvodes_.log_parameters = true;
+  set_num_residuals(static_cast<int>(x.size()));
+  mutable_parameter_block_sizes()->push_back(static_cast<int>(kP));
+  mutable_parameter_block_sizes()->push_back(1);
+}
+
+bool LgCostFunction::Evaluate(double const* const* parameters, double* residuals,
+                              double** jacobians) const {
+  const std::size_t n = x_.size();
+  const auto p = from_log({parameters[0], kP}, shape_);
+  if (!finite_parameters(p) || !std::isfinite(parameters[1][0])) return false;
+  const double z0 = parameters[1][0] * z_ref_;
+  const auto& motions = motions_;
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  try {
+    const bool want_j = jacobians && (jacobians[0] || jacobians[1]);
+    if (want_j) ++jacobian_evaluations_;
+    if (want_j && jacobian_ == LgJacobian::ExactStep) {
+      using Jet = ceres::Jet<double, kP + 1>;
+      std::array<Jet, kP> theta;
+      for (std::size_t j = 0; j < kP; ++j)
+        theta[j] = exp(Jet(parameters[0][j], static_cast<int>(j)));
+      const auto pj = LuGreParameters<Jet>::from_array(theta, shape_);
+      std::vector<Jet> f(n);
+      run_exact(pj, motions, Jet(parameters[1][0], static_cast<int>(kP)) * z_ref_, f.data());
+      for (std::size_t k = 0; k < n; ++k) {
+        residuals[k] = (force_[k] - f[k].a) / scale_;
+        if (jacobians[0])
+          for (std::size_t j = 0; j < kP; ++j) jacobians[0][kP * k + j] = -f[k].v[j] / scale_;
+        if (jacobians[1]) jacobians[1][k] = -f[k].v[kP] / scale_;
+      }
+    } else {
+      std::vector<double> f(n);
+      run_exact(p, motions, z0, f.data());
+      for (std::size_t k = 0; k < n; ++k) residuals[k] = (force_[k] - f[k]) / scale_;
+      if (want_j) {
+        const auto sim = simulate_lugre_cvodes(p, time_, x_, cvodes_, z0);
+        if (jacobians[0])
+          Eigen::Map<RowMajor>(jacobians[0], static_cast<Eigen::Index>(n), kP) =
+              -Eigen::Map<const RowMajor>(sim.jacobian.data(), static_cast<Eigen::Index>(n), kP) /
+              scale_;
+        if (jacobians[1])
+          for (std::size_t k = 0; k < n; ++k)
+            jacobians[1][k] = -sim.initial_state_derivative[k] * z_ref_ / scale_;
+      }
+    }
+  } catch (const Error&) {
+    return false;  // an unusable trial point: Ceres shrinks its trust region
+  }
+  for (std::size_t k = 0; k < n; ++k)
+    if (!std::isfinite(residuals[k])) return false;
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+double estimate_lugre_initial_state(const LuGreParameters<double>& parameters,
+                                    std::span<const double> time, std::span<const double> x,
+                                    std::span<const double> force) {
+  parameters.validate();
+  check_record(time, x, force, "estimate_lugre_initial_state");
+  Objective obj;
+  obj.force = force;
+  obj.motions = motions_of(time, x);
+  obj.sss = 0;
+  for (double f : force) obj.sss += f * f;
+  const double zr = rest_deflection(parameters);
+  double best_z = 0.0, best = obj.percent(parameters, 0.0);
+  constexpr int kGrid = 41;
+  for (int i = 0; i < kGrid; ++i) {
+    const double z = zr * kStateBound * (2.0 * i / (kGrid - 1) - 1.0);
+    const double c = obj.percent(parameters, z);
+    if (c < best) best = c, best_z = z;
+  }
+  // Gauss-Newton in z on the exact step with a one-direction Jet.
+  using Jet = ceres::Jet<double, 1>;
+  const auto pj = parameters.cast<Jet>();
+  std::vector<Jet> f(x.size());
+  for (int it = 0; it < 30; ++it) {
+    run_exact(pj, obj.motions, Jet(best_z, 0), f.data());
+    double jr = 0, jj = 0;
+    for (std::size_t k = 0; k < x.size(); ++k) {
+      const double r = force[k] - f[k].a;
+      jr += f[k].v[0] * r;
+      jj += f[k].v[0] * f[k].v[0];
+    }
+    if (!(jj > 0.0)) break;
+    double step = jr / jj;
+    bool accepted = false;
+    for (int h = 0; h < 20 && !accepted; ++h, step *= 0.5) {
+      const double z = std::clamp(best_z + step, -kStateBound * zr, kStateBound * zr);
+      const double c = obj.percent(parameters, z);
+      if (c < best) best = c, best_z = z, accepted = true;
+    }
+    if (!accepted || std::abs(step) < 1e-9 * zr) break;
+  }
+  return best_z;
+}
+
+LuGreFreeRun free_run_lugre(const LuGreParameters<double>& parameters, std::span<const double> time,
+                            std::span<const double> x, std::span<const double> force) {
+  LuGreFreeRun run;
+  run.initial_state = estimate_lugre_initial_state(parameters, time, x, force);
+  run.simulated.resize(x.size());
+  run_exact(parameters, motions_of(time, x), run.initial_state, run.simulated.data());
+  run.errors = compute_errors(force, run.simulated);
+  return run;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
+                        std::span<const double> force, const LgOptions& o) {
+  const auto clock_start = std::chrono::steady_clock::now();
+  auto lap_t = clock_start;
+  auto lap = [&lap_t](double& into) {
+    const auto now = std::chrono::steady_clock::now();
+    into += std::chrono::duration<double>(now - lap_t).count();
+    lap_t = now;
+  };
+  check_record(time, x, force, "identify_lugre");
+  FRICTION_CHECK(o.max_iterations >= 0 && o.global_evaluations >= 0 && o.polish_evaluations >= 0,
+                 "identify_lugre: negative budgets");
+  LgResult result;
+  IdentificationReport& rep = result.report;
+  const std::size_t n = x.size();
+  const double nd = static_cast<double>(n);
+
+  result.start = lugre_start(time, x, force, o.shape);
+  const LgStart& st = result.start;
+  rep.displacement_resolution = displacement_resolution(x);
+  rep.largest_travel = largest_travel(x);
+  rep.presliding_travel = travel_at_force_fraction(x, force, 0.95);
+
+  Objective obj;
+  obj.force = force;
+  obj.motions = motions_of(time, x);
+  obj.shape = o.shape;
+  for (double f : force) obj.sss += f * f;
+  const double scale = std::sqrt(obj.sss / nd);
+
+  const Box box = search_box(st);
+  auto to_point = [&](const LuGreParameters<double>& p, double u) {
+    Point pt;
+    for (double t : p.to_array()) pt.v.push_back(std::log(t));
+    pt.v.push_back(u);
+    pt.v = box.clamp(pt.v);
+    pt.percent = obj.percent(pt.v);
+    return pt;
+  };
+  auto point_log = [&](const Point& pt) {
+    const auto p = from_log({pt.v.data(), kP}, o.shape);
+    std::vector<double> out;
+    for (double t : p.to_array()) out.push_back(t);
+    out.push_back(pt.v[kP] * rest_deflection(p));
+    return out;
+  };
+  std::vector<double> minima;
+  auto log_start = [&](const std::string& kind, const Point& from, const Point& to) {
+    StartLog s;
+    s.operators = 1;
+    s.kind = kind;
+    s.start_thresholds = point_log(from);
+    s.final_thresholds = point_log(to);
+    s.start_percent = from.percent;
+    s.final_percent = to.percent;
+    s.distinct = std::none_of(minima.begin(), minima.end(), [&](double m) {
+      return std::abs(m - to.percent) <= 0.01 * std::max(m, to.percent);
+    });
+    if (s.distinct) minima.push_back(to.percent);
+    rep.starts.push_back(std::move(s));
+  };
+
+  // Start: the data-driven parameters with the initial state that suits them.
+  const double z_start = estimate_lugre_initial_state(st.parameters, time, x, force);
+  Point start = to_point(st.parameters, z_start / rest_deflection(st.parameters));
+  Point best = start;
+  int local_searches = 0;
+  lap(result.timings.start);
+  if (o.global_stage) {
+    const Point polished =
+        nlopt_run(nlopt::LN_BOBYQA, obj, box, start, o.polish_evaluations, o.seed);
+    ++local_searches;
+    log_start("data-driven+bobyqa", start, polished);
+    best = polished;
+    const int budget = o.global_evaluations > 0 ? o.global_evaluations : 1500;
+    const Point global = nlopt_run(nlopt::GN_CRS2_LM, obj, box, start, budget, o.seed);
+    const Point global_polished =
+        nlopt_run(nlopt::LN_BOBYQA, obj, box, global, o.polish_evaluations, o.seed);
+    ++local_searches;
+    lap(result.timings.global);
+    log_start("nlopt-crs2+bobyqa", start, global_polished);
+    if (global_polished.percent < best.percent) best = global_polished;
+  }
+
+  // Local stage: Ceres with the CVODES (or exact-step) Jacobian.
+  const auto p_best = from_log({best.v.data(), kP}, o.shape);
+  const double z_ref = rest_deflection(p_best);
+  std::vector<double> log_theta(best.v.begin(), best.v.begin() + kP);
+  double u = best.v[kP];
+  ceres::Solver::Summary summary;
+  {
+    ceres::Problem problem;
+    auto* cost = new LgCostFunction(time, x, force, scale, z_ref, o.shape, o.jacobian, o.cvodes);
+    problem.AddResidualBlock(cost, nullptr, log_theta.data(), &u);
+    for (std::size_t j = 0; j < kP; ++j) {
+      problem.SetParameterLowerBound(log_theta.data(), static_cast<int>(j), box.lower[j]);
+      problem.SetParameterUpperBound(log_theta.data(), static_cast<int>(j), box.upper[j]);
+    }
+    problem.SetParameterLowerBound(&u, 0, -kStateBound);
+    problem.SetParameterUpperBound(&u, 0, kStateBound);
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::DENSE_QR;
+    so.max_num_iterations = o.max_iterations;
+    // A relative change of 1e-8 in the cost is far below what the data resolve (one noise
+    // variance is a relative change of ~1/N), and LM crawls along the Fs/vs and Fc/sigma2 valleys.
+    so.function_tolerance = 1e-8;
+    so.gradient_tolerance = 1e-12;
+    so.parameter_tolerance = 1e-9;
+    so.num_threads = 1;
+    so.logging_type = ceres::SILENT;
+    // No projected line search at the bounds: each of its steps would need a full Jacobian
+    // (a CVODES run with sensitivities); measured, it made 100+ Jacobians in 8 iterations.
+    so.max_num_line_search_step_size_iterations = 0;
+    ceres::Solve(so, &problem, &summary);
+    ++local_searches;
+    result.timings.jacobian_evaluations = cost->jacobian_evaluations();
+    lap(result.timings.local);
+  }
+  result.parameters = from_log(log_theta, o.shape);
+  {
+    Point local;
+    local.v = log_theta;
+    local.v.push_back(u * z_ref / rest_deflection(result.parameters));
+    local.percent = 100.0 * 2.0 * summary.final_cost / nd;
+    Point from = best;
+    from.percent = 100.0 * 2.0 * summary.initial_cost / nd;
+    log_start("ceres", from, local);
+  }
+
+  // Errors of the free run from the estimated initial state (the routine validation uses).
+  const auto& p = result.parameters;
+  const LuGreFreeRun run = free_run_lugre(p, time, x, force);
+  result.initial_state = run.initial_state;
+  rep.initial_deflections = {run.initial_state};
+  rep.estimation_simulated = run.simulated;
+  rep.estimation = run.errors;
+  rep.noise_sigma = estimate_white_noise_sigma(force);
+  rep.noise_floor_percent = noise_floor_rss_sss_percent(force, rep.noise_sigma);
+
+  auto& conv = rep.convergence;
+  conv.converged = summary.termination_type == ceres::CONVERGENCE;
+  conv.iterations = static_cast<int>(summary.iterations.size());
+  conv.local_searches = local_searches;
+  conv.initial_cost = 100.0 * 2.0 * summary.initial_cost / nd;
+  conv.final_cost = rep.estimation.rss_sss_percent;
+  conv.message = summary.message;
+  if (!conv.converged)
+    rep.warnings.push_back("the local search (Ceres) did not report convergence: " +
+                           summary.message);
+
+  SelectionRow row;
+  row.operators = 1;
+  row.parameters = kP;
+  row.rss = rep.estimation.rss;
+  row.rss_sss_percent = rep.estimation.rss_sss_percent;
+  row.criterion = bayesian_information_criterion(row.rss, n, kP);
+  row.selected = true;
+  rep.selection.push_back(row);
+
+  // Parameters, uncertainty, identifiability.
+  const auto theta = p.to_array();
+  for (std::size_t j = 0; j < kP; ++j)
+    rep.parameters.push_back(
+        {kLuGreParameterNames[j], kUnits[j], theta[j], 0.0, theta[j], theta[j]});
+  rep.correlation = Eigen::MatrixXd::Identity(kP, kP);
+  for (std::size_t j = 0; j < kP; ++j) {
+    const double lt = std::log(theta[j]);
+    const double width = box.upper[j] - box.lower[j];
+    if (lt <= box.lower[j] + 1e-3 * width || lt >= box.upper[j] - 1e-3 * width) {
+      std::ostringstream w;
+      w << kLuGreParameterNames[j] << " (" << kSymbols[j] << ") = " << theta[j] << unit_text(j)
+        << " is at its search bound [" << std::exp(box.lower[j]) << ", " << std::exp(box.upper[j])
+        << "]";
+      rep.warnings.push_back(w.str());
+    }
+  }
+  if (o.covariance) {
+    std::vector<double> lt(theta.size());
+    for (std::size_t j = 0; j < kP; ++j) lt[j] = std::log(theta[j]);
+    double u_final = run.initial_state / rest_deflection(p);
+    const double zr = rest_deflection(p);
+    // The exact Jacobian (autodiff through the exact step) for the rank diagnosis.
+    Eigen::MatrixXd jtj(kP, kP);
+    {
+      using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+      RowMajor j(static_cast<Eigen::Index>(n), kP);
+      std::vector<double> r(n);
+      const double* blocks[2] = {lt.data(), &u_final};
+      double* jacs[2] = {j.data(), nullptr};
+      const LgCostFunction exact(time, x, force, scale, zr, o.shape, LgJacobian::ExactStep,
+                                 o.cvodes);
+      if (exact.Evaluate(blocks, r.data(), jacs))
+        jtj = j.transpose() * j;
+      else
+        jtj.setZero();
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(jtj);
+    const Eigen::VectorXd lambda = eig.eigenvalues();  // ascending
+    const double lmax = lambda(kP - 1);
+    const double rcond = lmax > 0.0 ? std::max(0.0, lambda(0)) / lmax : 0.0;
+    std::vector<bool> null_parameter(kP, false);
+    auto weakest = [&](Eigen::Index k) {
+      std::string names;
+      for (std::size_t j = 0; j < kP; ++j)
+        if (std::abs(eig.eigenvectors()(static_cast<Eigen::Index>(j), k)) > 0.3)
+          names += (names.empty() ? "" : ", ") + std::string(kSymbols[j]);
+      return names;
+    };
+    for (Eigen::Index k = 0; k < static_cast<Eigen::Index>(kP); ++k)
+      if (!(lmax > 0.0) || lambda(k) < 1e-14 * lmax)
+        for (std::size_t j = 0; j < kP; ++j)
+          if (std::abs(eig.eigenvectors()(static_cast<Eigen::Index>(j), k)) > 0.3)
+            null_parameter[j] = true;
+    if (rcond < 1e-10) {
+      std::ostringstream w;
+      w << "the problem is near-singular (reciprocal condition number of J^T J " << rcond
+        << "): the weakest direction involves " << weakest(0);
+      rep.warnings.push_back(w.str());
+    }
+
+    ceres::Problem problem;
+    problem.AddResidualBlock(
+        new LgCostFunction(time, x, force, scale, zr, o.shape, o.jacobian, o.cvodes), nullptr,
+        lt.data(), &u_final);
+    problem.SetParameterBlockConstant(&u_final);
+    ceres::Covariance::Options co;
+    co.algorithm_type = ceres::DENSE_SVD;
+    co.null_space_rank = -1;  // pseudo-inverse: drop directions below the tolerance
+    co.min_reciprocal_condition_number = 1e-14;
+    co.num_threads = 1;
+    ceres::Covariance cov(co);
+    Eigen::Matrix<double, kP, kP, Eigen::RowMajor> c;
+    bool ok = false;
+    try {
+      const std::vector<std::pair<const double*, const double*>> blocks{{lt.data(), lt.data()}};
+      ok = cov.Compute(blocks, &problem) && cov.GetCovarianceBlock(lt.data(), lt.data(), c.data());
+    } catch (const std::exception&) {
+      ok = false;
+    }
+    const double sigma2 = rep.estimation.rss / (scale * scale) / std::max(1.0, nd - (kP + 1));
+    if (ok && c.allFinite()) {
+      c *= sigma2;
+      std::string unavailable;
+      for (std::size_t a = 0; a < kP; ++a) {
+        auto& est = rep.parameters[a];
+        const auto ai = static_cast<Eigen::Index>(a);
+        if (null_parameter[a]) {
+          unavailable += (unavailable.empty() ? "" : ", ") + std::string(kSymbols[a]);
+          continue;
+        }
+        const double se_log = std::sqrt(std::max(0.0, c(ai, ai)));
+        const double se = est.value * se_log;
+        est.standard_error = std::isfinite(se) ? se : 0.0;
+        // Log-normal interval, clipped to the search box (where exp(1.96 se_log) overflows or
+        // leaves it, the linearisation says nothing the box does not).
+        const double box_lo = std::exp(box.lower[a]), box_hi = std::exp(box.upper[a]);
+        const double lo = est.value * std::exp(-1.96 * se_log);
+        const double hi = est.value * std::exp(1.96 * se_log);
+        const bool clipped = !(lo >= box_lo) || !(hi <= box_hi);
+        est.lower95 = lo >= box_lo ? lo : std::min(box_lo, est.value);
+        est.upper95 = hi <= box_hi ? hi : std::max(box_hi, est.value);
+        if (est.upper95 > 10.0 * est.lower95) {
+          std::ostringstream w;
+          w << est.name << " (" << kSymbols[a] << "): 95 % interval [" << est.lower95 << ", "
+            << est.upper95 << "]" << unit_text(a)
+            << (clipped ? " (clipped to the search bounds)" : "")
+            << " spans more than an order of magnitude (poorly identified)";
+          rep.warnings.push_back(w.str());
+        }
+      }
+      if (!unavailable.empty())
+        rep.warnings.push_back(
+            "the parameter covariance is rank-deficient; no standard error for " + unavailable +
+            " (not identifiable from this record)");
+      for (std::size_t a = 0; a < kP; ++a)
+        for (std::size_t b = 0; b < kP; ++b) {
+          const auto ai = static_cast<Eigen::Index>(a), bi = static_cast<Eigen::Index>(b);
+          const double den = std::sqrt(c(ai, ai) * c(bi, bi));
+          rep.correlation(ai, bi) =
+              a == b
+                  ? 1.0
+                  : (den > 0.0 && !null_parameter[a] && !null_parameter[b] ? c(ai, bi) / den : 0.0);
+        }
+      // The trade-offs known for LuGre on records of modest speed (methods.md 8), then any pair.
+      const std::array<std::pair<std::size_t, std::size_t>, 2> known{{{4, 5}, {6, 2}}};
+      for (const auto& [a, b] : known) {
+        const double r =
+            rep.correlation(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b));
+        if (std::abs(r) > 0.9) {
+          std::ostringstream w;
+          w << pair_name(a, b) << " trade off (correlation " << r
+            << "): at the sliding speeds of this record they are not separately identifiable; "
+               "a record sliding over a wider range of speeds would separate them";
+          rep.warnings.push_back(w.str());
+        }
+      }
+      for (std::size_t a = 0; a < kP; ++a)
+        for (std::size_t b = a + 1; b < kP; ++b) {
+          if ((a == 4 && b == 5) || (a == 2 && b == 6)) continue;
+          const double r =
+              rep.correlation(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b));
+          if (std::abs(r) > 0.95) {
+            std::ostringstream w;
+            w << pair_name(a, b) << " are correlated (" << r << ")";
+            rep.warnings.push_back(w.str());
+          }
+        }
+    } else {
+      rep.warnings.push_back(
+          "the parameter covariance could not be computed (some parameters are not identifiable "
+          "from this record); standard errors are not available");
+    }
+  }
+
+  // What the record can tell.
+  if (st.sliding_segments < 2)
+    rep.warnings.push_back(
+        "only one segment between reversals slides: the sliding parameters "
+        "rest on a single stroke");
+  if (st.fastest_sliding_speed < 3.0 * st.slowest_sliding_speed) {
+    std::ostringstream w;
+    w << "the record slides at nearly one speed (" << st.slowest_sliding_speed << " to "
+      << st.fastest_sliding_speed << " m/s): Fs, vs, mu and sigma2 cannot be separated from Fc";
+    rep.warnings.push_back(w.str());
+  }
+  if (rep.noise_floor_percent > 0.0 &&
+      rep.estimation.rss_sss_percent > 3.0 * rep.noise_floor_percent) {
+    double pre = 0;
+    for (std::size_t k = 0; k < n; ++k)
+      if (st.presliding[k]) {
+        const double e = force[k] - run.simulated[k];
+        pre += e * e;
+      }
+    std::ostringstream w;
+    w.precision(3);
+    w << "the estimation error " << rep.estimation.rss_sss_percent << " % is "
+      << rep.estimation.rss_sss_percent / rep.noise_floor_percent << " times the noise floor "
+      << rep.noise_floor_percent << " %, " << 100.0 * pre / std::max(rep.estimation.rss, 1e-300)
+      << " % of it in presliding: a single-state LuGre cannot reproduce multi-element presliding "
+         "hysteresis (nonlocal memory); a Maxwell Slip model may fit this record better";
+    rep.warnings.push_back(w.str());
+  }
+  lap(result.timings.report);
+  rep.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  return result;
+}
+
+}  // namespace friction

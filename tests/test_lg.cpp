@@ -1,0 +1,283 @@
+// LG identification of the LuGre model: Jacobian, data-driven start, round trip, the known
+// limitation on Maxwell Slip data, and records it cannot use.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "friction/lg.hpp"
+#include "friction/lugre.hpp"
+#include "friction/simulate.hpp"
+#include "identification_fixtures.hpp"
+
+namespace {
+
+using namespace friction;
+
+// Paper-like parameters (Canudas de Wit et al. 1995 test system, rational Stribeck shape).
+LuGreParameters<double> truth() {
+  return {1e5, std::sqrt(1e5), 0.4, 1.0, 1.5, 1e-3, 2.0};
+}
+
+constexpr double kSigma = 0.01;  // N, force noise (1 % of Fc)
+
+// 1 kHz.  First third: sinusoids at 3 Hz whose amplitude decays from 40 um to 3 um (presliding
+// loops, the largest sliding slowly); then sinusoidal strokes whose amplitude grows from 0.2 to
+// 3 mm and frequency from 1 to 2.5 Hz, so that reversals alternate with sliding up to ~45 mm/s,
+// sweeping the Stribeck range around vs = 1 mm/s many times.
+struct Record {
+  std::vector<double> time, x, force, noise;
+};
+
+Record lugre_record(std::size_t n, const LuGreParameters<double>& p, double z0, double sigma,
+                    unsigned seed) {
+  Record r;
+  r.time.resize(n);
+  r.x.resize(n);
+  const std::size_t n1 = n / 3;
+  const double t1 = static_cast<double>(n1) * 1e-3, t_end = static_cast<double>(n) * 1e-3;
+  double phase = 0.0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double t = 1e-3 * static_cast<double>(k);
+    r.time[k] = t;
+    if (k < n1) {
+      const double u = t / t1;
+      r.x[k] = 40e-6 * std::pow(3.0 / 40.0, u) * std::sin(2 * M_PI * 3.0 * t);
+    } else {
+      const double u = (t - t1) / (t_end - t1);
+      const double amplitude = 0.2e-3 + u * 2.8e-3, frequency = 1.0 + 1.5 * u;
+      phase += 2 * M_PI * frequency * 1e-3;
+      r.x[k] = amplitude * std::sin(phase);
+    }
+  }
+  LuGre<double> model(p);
+  model.reset(z0);
+  r.force = simulate(model, std::span<const double>(r.time), std::span<const double>(r.x));
+  std::mt19937 gen(seed);
+  std::normal_distribution<double> normal(0.0, sigma);
+  r.noise.resize(n);
+  for (std::size_t k = 0; k < n; ++k) r.force[k] += (r.noise[k] = normal(gen));
+  return r;
+}
+
+double percent_of(const std::vector<double>& e, const std::vector<double>& f) {
+  double a = 0, b = 0;
+  for (std::size_t k = 0; k < e.size(); ++k) a += e[k] * e[k], b += f[k] * f[k];
+  return 100.0 * a / b;
+}
+
+void print(const LgResult& r) {
+  const auto& rep = r.report;
+  for (const auto& p : rep.parameters)
+    std::cout << "  " << p.name << " = " << p.value << " +- " << p.standard_error << " ["
+              << p.lower95 << ", " << p.upper95 << "] " << p.unit << "\n";
+  for (const auto& s : rep.starts)
+    std::cout << "  start " << s.kind << " " << s.start_percent << " -> " << s.final_percent
+              << (s.distinct ? " distinct" : "") << "\n";
+  for (const auto& w : rep.warnings) std::cout << "  warning: " << w << "\n";
+  std::cout << "  z0 " << r.initial_state << " m, iterations " << rep.convergence.iterations
+            << ", seconds " << rep.seconds << ", estimation " << rep.estimation.rss_sss_percent
+            << " %, floor " << rep.noise_floor_percent << " %\n";
+}
+
+// (a) The Jacobian Ceres gets agrees with central differences of the simulated force.
+void check_jacobian(LgJacobian kind, double tolerance) {
+  const auto p = truth();
+  const Record r = lugre_record(1500, p, 0.0, 0.0, 1);
+  const double z_ref = 1.5 / 1e5, scale = 1.0;
+  const LgCostFunction cost(r.time, r.x, r.force, scale, z_ref, StribeckShape::Rational, kind,
+                            CvodesOptions{});
+  // Away from the record's own parameters, so that the residuals are not all zero.
+  std::vector<double> lt{std::log(1.3e5), std::log(250.0),  std::log(0.6), std::log(0.9),
+                         std::log(1.6),   std::log(1.4e-3), std::log(1.7)};
+  double u = 0.4;
+  const std::size_t n = r.x.size();
+  std::vector<double> res(n), j0(n * 7), j1(n);
+  const double* blocks[2] = {lt.data(), &u};
+  double* jacs[2] = {j0.data(), j1.data()};
+  ASSERT_TRUE(cost.Evaluate(blocks, res.data(), jacs));
+  auto residual_at = [&](std::size_t which, double h) {
+    std::vector<double> l2 = lt;
+    double u2 = u;
+    if (which < 7)
+      l2[which] += h;
+    else
+      u2 += h;
+    const double* b2[2] = {l2.data(), &u2};
+    std::vector<double> out(n);
+    EXPECT_TRUE(cost.Evaluate(b2, out.data(), nullptr));
+    return out;
+  };
+  double worst = 0;
+  for (std::size_t j = 0; j < 8; ++j) {
+    const double h = 1e-6;
+    const auto plus = residual_at(j, h), minus = residual_at(j, -h);
+    double diff = 0, norm = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      const double fd = (plus[k] - minus[k]) / (2 * h);
+      const double an = j < 7 ? j0[7 * k + j] : j1[k];
+      diff += (an - fd) * (an - fd);
+      norm += fd * fd;
+    }
+    EXPECT_GT(norm, 0.0) << "column " << j;
+    EXPECT_LT(std::sqrt(diff), tolerance * std::sqrt(norm)) << "column " << j;
+    worst = std::max(worst, std::sqrt(diff / norm));
+  }
+  std::cout << "largest relative column error " << worst << "\n";
+}
+
+TEST(Lg, CvodesJacobianMatchesCentralDifferences) {
+  check_jacobian(LgJacobian::Cvodes, 1e-3);
+}
+
+TEST(Lg, ExactStepJacobianMatchesCentralDifferences) {
+  check_jacobian(LgJacobian::ExactStep, 1e-5);
+}
+
+TEST(Lg, DataDrivenStartIsNearTheTruth) {
+  const auto p = truth();
+  const Record r = lugre_record(6000, p, 0.0, kSigma, 2);
+  const LgStart st = lugre_start(r.time, r.x, r.force);
+  const auto& s = st.parameters;
+  std::cout << "start: sigma0 " << s.stiffness << " sigma1 " << s.micro_damping << " sigma2 "
+            << s.viscous << " Fc " << s.coulomb << " Fs " << s.static_force << " vs "
+            << s.stribeck_velocity << " sliding segments " << st.sliding_segments << "/"
+            << st.segments << "\n";
+  EXPECT_GT(st.sliding_segments, 5u);
+  EXPECT_TRUE(st.sigma0_from_sliding_reversals);
+  // Estimators, not fits: Fc within 10 %, sigma0, sigma1 and vs within a factor 2.  This record
+  // leaves presliding at speeds above vs, so the force never shows Fs itself: the start only
+  // has to lie between Fc and Fs.
+  EXPECT_NEAR(s.coulomb, p.coulomb, 0.1 * p.coulomb);
+  EXPECT_GT(s.static_force, s.coulomb);
+  EXPECT_LT(s.static_force, 1.1 * p.static_force);
+  EXPECT_GT(s.stiffness, p.stiffness / 2);
+  EXPECT_LT(s.stiffness, p.stiffness * 2);
+  EXPECT_GT(s.micro_damping, p.micro_damping / 2);
+  EXPECT_LT(s.micro_damping, p.micro_damping * 2);
+  EXPECT_GT(s.stribeck_velocity, p.stribeck_velocity / 2);
+  EXPECT_LT(s.stribeck_velocity, p.stribeck_velocity * 2);
+}
+
+TEST(Lg, InitialStateIsRecoveredForAFixedModel) {
+  const auto p = truth();
+  const double z0 = 0.7 * 1.5 / 1e5;
+  const Record r = lugre_record(2000, p, z0, kSigma, 3);
+  const auto run = free_run_lugre(p, r.time, r.x, r.force);
+  EXPECT_NEAR(run.initial_state, z0, 0.05 * z0);
+  EXPECT_LT(run.errors.rss_sss_percent, 1.1 * percent_of(r.noise, r.force));
+}
+
+// (b) Round trip.
+struct RoundTrip {
+  Record record;
+  LgResult result;
+};
+
+const RoundTrip& round_trip() {
+  static const RoundTrip rt = [] {
+    RoundTrip t;
+    t.record = lugre_record(6000, truth(), -0.4 * 1.5 / 1e5, kSigma, 4);
+    t.result = identify_lugre(t.record.time, t.record.x, t.record.force);
+    print(t.result);
+    return t;
+  }();
+  return rt;
+}
+
+TEST(Lg, RoundTripRecoversTheParameters) {
+  const auto& rt = round_trip();
+  const auto& rep = rt.result.report;
+  ASSERT_EQ(rep.parameters.size(), 7u);
+  const auto theta = truth().to_array();
+  // Joint 95 % coverage of seven intervals: Bonferroni, z = 2.69 instead of 1.96.
+  const double widen = 2.69 / 1.96;
+  for (std::size_t j = 0; j < 7; ++j) {
+    const auto& e = rep.parameters[j];
+    EXPECT_TRUE(std::isfinite(e.value) && std::isfinite(e.standard_error)) << e.name;
+    EXPECT_GT(e.standard_error, 0.0) << e.name;
+    EXPECT_LE(e.value * std::pow(e.lower95 / e.value, widen), theta[j]) << e.name;
+    EXPECT_GE(e.value * std::pow(e.upper95 / e.value, widen), theta[j]) << e.name;
+  }
+  // The correlation matrix is a correlation matrix.
+  for (Eigen::Index a = 0; a < 7; ++a) {
+    EXPECT_DOUBLE_EQ(rep.correlation(a, a), 1.0);
+    for (Eigen::Index b = 0; b < 7; ++b) EXPECT_LE(std::abs(rep.correlation(a, b)), 1.0 + 1e-12);
+  }
+}
+
+TEST(Lg, RoundTripErrorIsAtTheNoiseFloor) {
+  const auto& rt = round_trip();
+  const auto& rep = rt.result.report;
+  const double noise = percent_of(rt.record.noise, rt.record.force);
+  EXPECT_EQ(rep.estimation.samples, rt.record.x.size());
+  EXPECT_LT(rep.estimation.rss_sss_percent, 1.2 * noise);
+  EXPECT_LT(rep.estimation.rss_sss_percent, 1.2 * rep.noise_floor_percent);
+  EXPECT_NEAR(rep.noise_sigma, kSigma, 0.2 * kSigma);
+  EXPECT_NEAR(rt.result.initial_state, -0.4 * 1.5 / 1e5, 0.1 * 1.5 / 1e5);
+  EXPECT_FALSE(rep.starts.empty());
+  EXPECT_EQ(rep.starts.back().kind, "ceres");
+  EXPECT_TRUE(rep.convergence.converged) << rep.convergence.message;
+  EXPECT_GT(rep.seconds, 0.0);
+  for (const auto& w : rep.warnings) EXPECT_EQ(w.find("nonlocal memory"), std::string::npos) << w;
+}
+
+// (c) On a multi-element Maxwell Slip system the LuGre fit runs, but stays well above the floor.
+TEST(Lg, MaxwellSlipDataShowsTheKnownLimitation) {
+  const auto sys = friction::testing::four_operator_system();
+  const auto rec = friction::testing::synthetic_record(sys, 3000, 30e-6, 0, 2e-3, 11,
+                                                       {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr);
+  const auto r = identify_lugre(rec.time, rec.displacement, rec.force);
+  print(r);
+  const auto& rep = r.report;
+  for (const auto& e : rep.parameters) {
+    EXPECT_TRUE(std::isfinite(e.value) && e.value > 0.0) << e.name;
+    EXPECT_TRUE(std::isfinite(e.standard_error) && std::isfinite(e.lower95) &&
+                std::isfinite(e.upper95))
+        << e.name;
+  }
+  EXPECT_TRUE(rep.correlation.allFinite());
+  EXPECT_TRUE(std::isfinite(rep.estimation.rss_sss_percent));
+  EXPECT_GT(rep.estimation.rss_sss_percent, 3.0 * rep.noise_floor_percent);
+  EXPECT_TRUE(std::any_of(rep.warnings.begin(), rep.warnings.end(), [](const std::string& w) {
+    return w.find("nonlocal memory") != std::string::npos;
+  }));
+}
+
+// (d) A record that never slides is refused with a message, not fitted into NaNs.
+TEST(Lg, PreslidingOnlyRecordIsRefusedClearly) {
+  const auto p = truth();
+  Record r;
+  for (std::size_t k = 0; k < 2000; ++k) {
+    const double t = 1e-3 * static_cast<double>(k);
+    r.time.push_back(t);
+    r.x.push_back(2e-6 * std::sin(2 * M_PI * 2.0 * t));
+  }
+  LuGre<double> model(p);
+  model.reset();
+  r.force = simulate(model, std::span<const double>(r.time), std::span<const double>(r.x));
+  try {
+    (void)identify_lugre(r.time, r.x, r.force);
+    FAIL() << "a presliding-only record was accepted";
+  } catch (const InvalidParameter& e) {
+    EXPECT_NE(std::string(e.what()).find("never slides"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Lg, UnusableInputsAreRefused) {
+  std::vector<double> t(100), x(100), f(100, 0.0);
+  for (std::size_t k = 0; k < 100; ++k) t[k] = 1e-3 * static_cast<double>(k), x[k] = 1e-3 * t[k];
+  EXPECT_THROW((void)identify_lugre(t, x, f), InvalidParameter);  // zero force
+  std::vector<double> f1(100, 1.0), x0(100, 0.0);
+  EXPECT_THROW((void)identify_lugre(t, x0, f1), InvalidParameter);  // no motion
+  EXPECT_THROW((void)identify_lugre(std::span<const double>(t).first(10),
+                                    std::span<const double>(x).first(10),
+                                    std::span<const double>(f1).first(10)),
+               InvalidParameter);  // too short
+}
+
+}  // namespace
