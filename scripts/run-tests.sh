@@ -6,7 +6,9 @@
 #   3. runs the GoogleTest suite with ctest,
 #   4. install test: installs into a temporary prefix, builds examples/cmake-project against it
 #      with find_package(friction CONFIG REQUIRED) and runs it,
-#   5. the suite again under AddressSanitizer + UndefinedBehaviorSanitizer (build-asan/).
+#   5. the suite again under AddressSanitizer + UndefinedBehaviorSanitizer (build-asan/), except
+#      the tests labelled "long" (the statistical studies: many fits of the same code paths, which
+#      the Release pass runs and which would take most of CI's time under ASan).
 #      FRICTION_SKIP_SANITIZERS=1 skips this pass (CI always runs it).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
@@ -15,9 +17,12 @@ cd "$FRICTION_ROOT"
 ASAN_BUILD_DIR="${FRICTION_ASAN_BUILD_DIR:-build-asan}"
 CTEST_JOBS=2
 
+# run_ctest DIR [extra ctest arguments...]
 run_ctest() {
-  say "ctest in $1"
-  ctest --test-dir "$1" --output-on-failure -j "$CTEST_JOBS"
+  local dir=$1
+  shift
+  say "ctest in $dir $*"
+  ctest --test-dir "$dir" --output-on-failure -j "$CTEST_JOBS" "$@"
 }
 
 # Every compile command of a source under src/ apps/ tests/ bench/ must carry the warning flags.
@@ -75,7 +80,7 @@ sanitizer_pass() {
     -DFRICTION_BUILD_BENCHMARKS=OFF
   ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:detect_stack_use_after_return=1}" \
     UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}" \
-    run_ctest "$ASAN_BUILD_DIR"
+    run_ctest "$ASAN_BUILD_DIR" --label-exclude long
 }
 
 total_start=$SECONDS

@@ -81,6 +81,9 @@ int run(int argc, char** argv) {
   app.require_subcommand(1);
   const Action generate = register_generate(app);
   const Action simulate = register_simulate(app);
+  const Action identify = register_identify(app);
+  const Action validate = register_validate(app);
+  const Action compare = register_compare(app);
 
   try {
     app.parse(argc, argv);
@@ -96,6 +99,9 @@ int run(int argc, char** argv) {
       const std::string name = sub->get_name();
       if (name == "generate") return generate();
       if (name == "simulate") return simulate();
+      if (name == "identify") return identify();
+      if (name == "validate") return validate();
+      if (name == "compare") return compare();
     }
     return kExitUsage;
   } catch (const OptionError& e) {

@@ -1,0 +1,367 @@
+// `identify`, `validate` and `compare`: the paper's methods from the command line.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+#include "commands.hpp"
+#include "friction/methods.hpp"
+#include "progress.hpp"
+
+namespace friction::cli {
+
+namespace {
+
+struct MethodCliOptions {
+  std::size_t max_operators = 0;
+  std::size_t operators = 0;
+  long spring_order = -1;
+  long input_order = -1;
+  bool no_global = false;
+  unsigned seed = 1;
+  MethodOptions method() const {
+    return {max_operators, operators, spring_order, input_order, !no_global, seed};
+  }
+};
+
+void add_method_options(CLI::App& c, MethodCliOptions& m) {
+  c.add_option("--max-operators", m.max_operators,
+               "NLR/DNLRX: largest number of operators M tried by the order selection");
+  c.add_option("--operators", m.operators, "NLR/DNLRX: fit this M only (no selection)");
+  c.add_option("--spring-order", m.spring_order, "DNLRX: fix the spring-filter order n");
+  c.add_option("--input-order", m.input_order, "DNLRX: fix the input-filter order nx");
+  c.add_flag("--no-global", m.no_global, "Skip the NLopt global stages (faster, less robust)");
+  c.add_option("--seed", m.seed, "Seed of the global stages")->capture_default_str();
+}
+
+std::string fmt(double v, int precision = 4) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+  return buf;
+}
+
+std::string fixed(double v, int decimals = 3) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  return buf;
+}
+
+// What reading and conditioning the record found (force sign, sampling, resolution, noise).
+Json data_json(const Record& r, const std::string& role) {
+  const auto& c = r.conditioning;
+  Json gaps = Json::array();
+  return {{"role", role},
+          {"file", r.source},
+          {"samples", r.size()},
+          {"duration", r.size() > 1 ? r.time.back() - r.time.front() : 0.0},
+          {"force_sign", c.force_sign},
+          {"nominal_period", c.nominal_period},
+          {"irregular_sampling", c.irregular},
+          {"gaps", c.gaps.size()},
+          {"displacement_resolution", c.displacement_resolution},
+          {"force_noise", c.force_noise},
+          {"normal_force", r.has_normal()}};
+}
+
+struct Records {
+  Record estimation;
+  Record validation;  // empty when there is none
+  bool has_validation = false;
+  std::vector<Json> data;
+  std::vector<std::string> warnings;
+};
+
+// --data and --validate, or a hold-out of the last fraction of --data.
+Records load_records(const std::string& data, const std::string& validate, double holdout,
+                     bool hold_out_when_missing, const InputOptions& in) {
+  Records rs;
+  Record all = load_record(data, in, /*require_force=*/true);
+  rs.warnings = all.conditioning.warnings;
+  if (!validate.empty()) {
+    rs.estimation = std::move(all);
+    rs.validation = load_record(validate, in, true);
+    for (const auto& w : rs.validation.conditioning.warnings)
+      rs.warnings.push_back(validate + ": " + w);
+    rs.has_validation = true;
+  } else if (hold_out_when_missing) {
+    if (!(holdout > 0 && holdout < 1))
+      throw OptionError("--holdout must lie strictly between 0 and 1");
+    const std::size_t n = all.size();
+    const auto n_est = static_cast<std::size_t>(std::llround((1.0 - holdout) * n));
+    if (n_est < 2 * kMinSamples || n - n_est < kMinSamples)
+      throw DataError(data, 0, 0,
+                      "too few samples to hold out " + fixed(100 * holdout, 0) +
+                          " % for validation; give --validate");
+    rs.estimation = all.slice(0, n_est);
+    rs.validation = all.slice(n_est, n);
+    rs.has_validation = true;
+    rs.warnings.push_back("no --validate given: the last " + fixed(100 * holdout, 0) + " % of " +
+                          data + " (from t = " + fmt(rs.validation.time.front(), 6) +
+                          " s) is held out for validation");
+  } else {
+    rs.estimation = std::move(all);
+  }
+  rs.data.push_back(data_json(rs.estimation, "estimation"));
+  if (rs.has_validation) rs.data.push_back(data_json(rs.validation, "validation"));
+  return rs;
+}
+
+Json validation_json(const Validation& v) {
+  Json j = errors_to_json(v.errors);
+  j["initial_state"] = v.initial_state;
+  j["initial_state_values"] = v.initial_state_values;
+  j["noise"] = {{"sigma", v.noise_sigma}, {"floor_percent", v.noise_floor_percent}};
+  return j;
+}
+
+void print_errors(std::ostream& os, const char* label, const ErrorMetrics& e, double floor) {
+  os << "  " << label << ": RSS/SSS " << fmt(e.rss_sss_percent) << " %, RMS " << fmt(e.rms)
+     << " N, max |e| " << fmt(e.max_abs) << " N, R^2 " << fixed(e.r_squared, 5)
+     << " (noise floor " << fmt(floor) << " %)\n";
+}
+
+void print_report(std::ostream& os, const IdentifiedModel& m) {
+  const auto& rep = m.report;
+  if (!rep.selection.empty()) {
+    os << "  order selection on the estimation record (" << rep.criterion << "):\n"
+       << "      M   n  nx  params   RSS/SSS %         " << rep.criterion << "\n";
+    for (const auto& s : rep.selection) {
+      char line[160];
+      std::snprintf(line, sizeof line, "    %3zu %3zu %3zu %7zu %11.4g %12.6g%s%s\n", s.operators,
+                    s.spring_order, s.input_order, s.parameters, s.rss_sss_percent, s.criterion,
+                    s.selected ? "  <- selected" : "", s.failed ? "  (failed)" : "");
+      os << line;
+    }
+  }
+  os << "  parameters (95 % intervals):\n";
+  for (const auto& p : rep.parameters) {
+    char line[200];
+    std::snprintf(line, sizeof line, "    %-22s %13.6g  +- %-11.3g [%11.4g, %11.4g] %s\n",
+                  p.name.c_str(), p.value, p.standard_error, p.lower95, p.upper95, p.unit.c_str());
+    os << line;
+  }
+  os << "  converged: " << (rep.convergence.converged ? "yes" : "NO") << " ("
+     << rep.convergence.message << "), " << rep.convergence.local_searches << " local searches, "
+     << rep.starts.size() << " starts logged, " << fixed(rep.seconds, 2) << " s\n";
+}
+
+struct IdentifyOptions {
+  std::string model;
+  std::string data, validate;
+  InputOptions input;
+  OutputOptions output;
+  MethodCliOptions method;
+};
+
+int run_identify(const IdentifyOptions& o) {
+  Records rs = load_records(o.data, o.validate, 0.3, /*hold_out_when_missing=*/false, o.input);
+  Json doc = new_document("identify");
+  add_warnings(doc, rs.warnings);
+  doc["data"] = rs.data;
+  Progress progress;
+  progress.update("identifying " + method_name(method_type(o.model)) + " on " + o.data + " ...");
+  IdentifiedModel m = identify_model(o.model, rs.estimation, o.method.method());
+  progress.done();
+  add_warnings(doc, m.report.warnings);
+  doc["method"] = method_name(m.model.type());
+  doc["model"] = m.model.to_json();
+  doc["estimation"] = errors_to_json(m.report.estimation);
+  doc["estimation"]["initial_state"] = "estimated";
+  doc["estimation"]["initial_state_values"] = m.initial_state;
+  doc["estimation"]["noise"] = {{"sigma", m.report.noise_sigma},
+                                {"floor_percent", m.report.noise_floor_percent}};
+  doc["identification"] = report_to_json(m.report);
+  doc["seconds"] = m.report.seconds;
+  std::optional<Validation> val;
+  if (rs.has_validation) {
+    val = validate_model(m.model, rs.validation);
+    doc["validation"] = validation_json(*val);
+  }
+  if (o.output.format == "json") {
+    emit(o.output, doc.dump(2) + "\n");
+    return kExitOk;
+  }
+  std::ostringstream os;
+  os << method_name(m.model.type()) << " (" << m.model.type() << ") identified on " << o.data
+     << " (" << rs.estimation.size() << " samples) in " << fixed(m.report.seconds, 2) << " s\n";
+  print_report(os, m);
+  print_errors(os, "estimation", m.report.estimation, m.report.noise_floor_percent);
+  if (val) print_errors(os, "validation", val->errors, val->noise_floor_percent);
+  if (!doc["warnings"].empty()) os << "  " << doc["warnings"].size() << " warning(s), on stderr\n";
+  if (!o.output.out.empty()) {
+    // The table goes to stdout; the file gets the document a script or `simulate` can load.
+    std::cout << os.str();
+    emit(o.output, doc.dump(2) + "\n");
+  } else {
+    emit(o.output, os.str());
+  }
+  return kExitOk;
+}
+
+struct ValidateOptions {
+  std::string model_file, data;
+  InputOptions input;
+  OutputOptions output;
+};
+
+int run_validate(const ValidateOptions& o) {
+  const AnyModel model = load_model(o.model_file);
+  const Record r = load_record(o.data, o.input, true);
+  Json doc = new_document("validate");
+  add_warnings(doc, r.conditioning.warnings);
+  doc["data"] = {data_json(r, "validation")};
+  doc["model"] = model.to_json();
+  const Validation v = validate_model(model, r);
+  doc["validation"] = validation_json(v);
+  if (o.output.format == "json") {
+    emit(o.output, doc.dump(2) + "\n");
+    return kExitOk;
+  }
+  std::ostringstream os;
+  os << model.type() << " model " << o.model_file << " on " << o.data << " (" << r.size()
+     << " samples, initial state " << v.initial_state << ")\n";
+  print_errors(os, "validation", v.errors, v.noise_floor_percent);
+  emit(o.output, os.str());
+  return kExitOk;
+}
+
+struct CompareOptions {
+  std::string data, validate;
+  double holdout = 0.3;
+  std::vector<std::string> methods{"LG", "NLR", "DNLRX"};
+  InputOptions input;
+  OutputOptions output;
+  MethodCliOptions method;
+};
+
+int run_compare(const CompareOptions& o) {
+  Records rs = load_records(o.data, o.validate, o.holdout, /*hold_out_when_missing=*/true, o.input);
+  Json doc = new_document("compare");
+  add_warnings(doc, rs.warnings);
+  doc["data"] = rs.data;
+  doc["methods"] = Json::array();
+  Progress progress;
+  for (const auto& name : o.methods) {
+    const std::string type = method_type(name);
+    Json row;
+    row["method"] = method_name(type);
+    const auto start = std::chrono::steady_clock::now();
+    try {
+      progress.update("compare: identifying " + method_name(type) + " ...");
+      IdentifiedModel m = identify_model(type, rs.estimation, o.method.method());
+      progress.update("compare: validating " + method_name(type) + " ...");
+      const Validation v = validate_model(m.model, rs.validation);
+      for (const auto& w : m.report.warnings) {
+        std::cerr << "warning: " << method_name(type) << ": " << w << "\n";
+        doc["warnings"].push_back(method_name(type) + ": " + w);
+      }
+      row["model"] = m.model.to_json();
+      row["parameters"] = m.model.parameter_count();
+      row["estimation"] = errors_to_json(m.report.estimation);
+      row["estimation"]["initial_state"] = "estimated";
+      row["validation"] = validation_json(v);
+      row["identification"] = report_to_json(m.report);
+      row["warnings"] = m.report.warnings;
+    } catch (const std::exception& e) {
+      row["error"] = e.what();
+      std::cerr << "error: " << method_name(type) << ": " << e.what() << "\n";
+    }
+    row["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    doc["methods"].push_back(row);
+  }
+  progress.done();
+  bool any = false;
+  for (const auto& row : doc["methods"]) any = any || !row.contains("error");
+  // No result at all is a failure (exit 1); a failed method among others is a row with an error.
+  const int status = any ? kExitOk : kExitData;
+  if (o.output.format == "json") {
+    emit(o.output, doc.dump(2) + "\n");
+    return status;
+  }
+  std::ostringstream os;
+  os << "Estimation: " << rs.data[0]["file"].get<std::string>() << " (" << rs.estimation.size()
+     << " samples); validation: "
+     << (o.validate.empty() ? "last " + fixed(100 * o.holdout, 0) + " % held out" : o.validate)
+     << " (" << rs.validation.size() << " samples)\n\n";
+  char line[200];
+  std::snprintf(line, sizeof line, "%-7s %7s %14s %14s %9s\n", "method", "params",
+                "estim. RSS/SSS", "valid. RSS/SSS", "seconds");
+  os << line;
+  for (const auto& row : doc["methods"]) {
+    if (row.contains("error")) {
+      std::snprintf(line, sizeof line, "%-7s failed: %s\n",
+                    row["method"].get<std::string>().c_str(),
+                    row["error"].get<std::string>().c_str());
+    } else {
+      std::snprintf(line, sizeof line, "%-7s %7zu %13.4g%% %13.4g%% %9.2f\n",
+                    row["method"].get<std::string>().c_str(), row["parameters"].get<std::size_t>(),
+                    row["estimation"]["rss_sss_percent"].get<double>(),
+                    row["validation"]["rss_sss_percent"].get<double>(),
+                    row["seconds"].get<double>());
+    }
+    os << line;
+  }
+  for (const auto& row : doc["methods"]) {
+    if (!row.contains("validation")) continue;
+    os << "\nnoise floor of the validation record: RSS/SSS "
+       << fmt(row["validation"]["noise"]["floor_percent"].get<double>()) << " % (force noise "
+       << fmt(row["validation"]["noise"]["sigma"].get<double>()) << " N)\n";
+    break;
+  }
+  if (!doc["warnings"].empty()) os << doc["warnings"].size() << " warning(s), on stderr\n";
+  if (!o.output.out.empty()) {
+    std::cout << os.str();
+    emit(o.output, doc.dump(2) + "\n");
+  } else {
+    emit(o.output, os.str());
+  }
+  return status;
+}
+
+}  // namespace
+
+Action register_identify(CLI::App& root) {
+  auto o = std::make_shared<IdentifyOptions>();
+  CLI::App* c = root.add_subcommand("identify", "Estimate one model from --data, optionally "
+                                                "scored on --validate");
+  c->add_option("--model", o->model, "lugre (LG), maxwell-slip (NLR) or dnlrx (DNLRX)")->required();
+  c->add_option("--data", o->data, "Estimation record (CSV)")->required();
+  c->add_option("--validate", o->validate, "Validation record (CSV)");
+  add_method_options(*c, o->method);
+  add_input_options(*c, o->input);
+  add_output_options(*c, o->output);
+  return [o] { return run_identify(*o); };
+}
+
+Action register_validate(CLI::App& root) {
+  auto o = std::make_shared<ValidateOptions>();
+  CLI::App* c = root.add_subcommand("validate", "Score a saved model on a record (initial state "
+                                                "estimated from the record)");
+  c->add_option("--model-file", o->model_file, "Saved model (JSON), or an identify document")
+      ->required();
+  c->add_option("--data", o->data, "Record (CSV)")->required();
+  add_input_options(*c, o->input);
+  add_output_options(*c, o->output);
+  return [o] { return run_validate(*o); };
+}
+
+Action register_compare(CLI::App& root) {
+  auto o = std::make_shared<CompareOptions>();
+  CLI::App* c = root.add_subcommand(
+      "compare", "Identify LG, NLR and DNLRX on --data and score each on --validate: the paper's "
+                 "comparison");
+  c->add_option("--data", o->data, "Estimation record (CSV)")->required();
+  c->add_option("--validate", o->validate, "Validation record (CSV)");
+  c->add_option("--holdout", o->holdout,
+                "Without --validate: fraction of --data held out at its end for validation")
+      ->capture_default_str();
+  c->add_option("--methods", o->methods, "Methods to compare (default LG,NLR,DNLRX)")
+      ->delimiter(',');
+  add_method_options(*c, o->method);
+  add_input_options(*c, o->input);
+  add_output_options(*c, o->output);
+  return [o] { return run_compare(*o); };
+}
+
+}  // namespace friction::cli

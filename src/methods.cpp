@@ -1,0 +1,188 @@
+#include "friction/methods.hpp"
+
+#include <chrono>
+#include <cmath>
+
+#include "friction/dnlrx_identification.hpp"
+#include "friction/initial_state.hpp"
+#include "friction/lg.hpp"
+#include "friction/nlr.hpp"
+
+namespace friction {
+
+std::string method_name(const std::string& type) {
+  if (type == "lugre") return "LG";
+  if (type == "maxwell-slip") return "NLR";
+  if (type == "dnlrx") return "DNLRX";
+  return type;
+}
+
+std::string method_type(const std::string& name) {
+  if (name == "LG" || name == "lg") return "lugre";
+  if (name == "NLR" || name == "nlr") return "maxwell-slip";
+  if (name == "DNLRX" || name == "dnlrx") return "dnlrx";
+  return check_model_type(name);
+}
+
+namespace {
+
+void require_force(const Record& r) {
+  FRICTION_CHECK(r.has_force(), r.source, ": the record has no force column to identify from");
+}
+
+Json values_json(const std::vector<double>& values, const char* unit) {
+  return {{"kind", "estimated"}, {"values", values}, {"unit", unit}};
+}
+
+}  // namespace
+
+IdentifiedModel identify_model(const std::string& type_or_name, const Record& r,
+                               const MethodOptions& o) {
+  require_force(r);
+  const std::string type = method_type(type_or_name);
+  const ExtensionParameters<double> none;
+  if (type == "maxwell-slip") {
+    NlrOptions n;
+    if (o.max_operators > 0) n.max_operators = o.max_operators;
+    n.operators = o.operators;
+    n.global_stage = o.global_stage;
+    n.seed = o.seed;
+    NlrResult res = identify_maxwell_slip(r.time, r.displacement, r.force, n);
+    Json init = values_json(res.report.initial_deflections, "m");
+    return {AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(res.parameters), none)),
+            std::move(res.report), std::move(init)};
+  }
+  if (type == "dnlrx") {
+    DnlrxOptions d;
+    if (o.max_operators > 0) d.max_operators = o.max_operators;
+    d.operators = o.operators;
+    d.spring_order = o.spring_order;
+    d.input_order = o.input_order;
+    d.nlr.global_stage = o.global_stage;
+    d.nlr.seed = o.seed;
+    DnlrxResult res = identify_dnlrx(r.time, r.displacement, r.force, d);
+    Json init = values_json(res.report.initial_deflections, "m");
+    return {AnyModel(Extended<Dnlrx<double>>(Dnlrx<double>(res.parameters), none)),
+            std::move(res.report), std::move(init)};
+  }
+  if (type == "lugre") {
+    LgOptions l;
+    l.global_stage = o.global_stage;
+    l.seed = o.seed;
+    LgResult res = identify_lugre(r.time, r.displacement, r.force, l);
+    Json init = values_json({res.initial_state}, "m");
+    return {AnyModel(Extended<LuGre<double>>(LuGre<double>(res.parameters), none)),
+            std::move(res.report), std::move(init)};
+  }
+  throw InvalidParameter("identify: model type '" + type +
+                         "' cannot be identified yet (lugre, maxwell-slip and dnlrx can)");
+}
+
+Validation validate_model(const AnyModel& model, const Record& r) {
+  require_force(r);
+  Validation v;
+  const bool plain = model.extensions().empty();
+  std::visit(
+      [&](const auto& ext) {
+        using Base = std::decay_t<decltype(ext.base())>;
+        const auto& p = ext.base().parameters();
+        if constexpr (std::is_same_v<Base, MaxwellSlip<double>>) {
+          if (plain) {
+            FreeRun run = free_run_maxwell_slip(p, r.time, r.displacement, r.force);
+            v.simulated = std::move(run.simulated);
+            v.initial_state_values = values_json(run.initial_deflections, "m");
+            v.initial_state = "estimated";
+            return;
+          }
+        } else if constexpr (std::is_same_v<Base, Dnlrx<double>>) {
+          if (plain) {
+            DnlrxFreeRun run = free_run_dnlrx(p, r.time, r.displacement, r.force);
+            v.simulated = std::move(run.simulated);
+            v.initial_state_values = values_json(run.initial_deflections, "m");
+            v.initial_state = "estimated";
+            return;
+          }
+        } else if constexpr (std::is_same_v<Base, LuGre<double>>) {
+          if (plain) {
+            LuGreFreeRun run = free_run_lugre(p, r.time, r.displacement, r.force);
+            v.simulated = std::move(run.simulated);
+            v.initial_state_values = values_json({run.initial_state}, "m");
+            v.initial_state = "estimated";
+            return;
+          }
+        }
+        AnyModel copy = model;
+        v.simulated = copy.simulate(r);
+        v.initial_state = "zero";
+        v.initial_state_values = {{"kind", "zero"}};
+      },
+      model.variant());
+  v.errors = compute_errors(r.force, v.simulated);
+  v.noise_sigma = estimate_white_noise_sigma(r.force);
+  v.noise_floor_percent = noise_floor_rss_sss_percent(r.force, v.noise_sigma);
+  return v;
+}
+
+Json errors_to_json(const ErrorMetrics& e) {
+  return {{"rss_sss_percent", e.rss_sss_percent},
+          {"rms", e.rms},
+          {"max_abs", e.max_abs},
+          {"r_squared", e.r_squared},
+          {"samples", e.samples}};
+}
+
+Json report_to_json(const IdentificationReport& rep) {
+  Json j;
+  Json params = Json::array();
+  for (const auto& p : rep.parameters)
+    params.push_back({{"name", p.name},
+                      {"unit", p.unit},
+                      {"value", p.value},
+                      {"standard_error", p.standard_error},
+                      {"lower95", p.lower95},
+                      {"upper95", p.upper95}});
+  j["parameters"] = params;
+  Json corr = Json::array();
+  for (Eigen::Index i = 0; i < rep.correlation.rows(); ++i) {
+    Json row = Json::array();
+    for (Eigen::Index k = 0; k < rep.correlation.cols(); ++k) {
+      const double c = rep.correlation(i, k);
+      row.push_back(std::isfinite(c) ? Json(c) : Json(nullptr));
+    }
+    corr.push_back(row);
+  }
+  j["correlation"] = corr;
+  Json sel = Json::array();
+  for (const auto& s : rep.selection)
+    sel.push_back({{"operators", s.operators},
+                   {"spring_order", s.spring_order},
+                   {"input_order", s.input_order},
+                   {"parameters", s.parameters},
+                   {"rss_sss_percent", s.rss_sss_percent},
+                   {"criterion", s.criterion},
+                   {"selected", s.selected},
+                   {"failed", s.failed}});
+  j["selection"] = {{"criterion", rep.criterion}, {"table", sel}};
+  j["convergence"] = {{"converged", rep.convergence.converged},
+                      {"iterations", rep.convergence.iterations},
+                      {"local_searches", rep.convergence.local_searches},
+                      {"initial_cost_percent", rep.convergence.initial_cost},
+                      {"final_cost_percent", rep.convergence.final_cost},
+                      {"message", rep.convergence.message}};
+  Json starts = Json::array();
+  for (const auto& s : rep.starts)
+    starts.push_back({{"operators", s.operators},
+                      {"kind", s.kind},
+                      {"start_percent", s.start_percent},
+                      {"final_percent", s.final_percent},
+                      {"distinct", s.distinct}});
+  j["starts"] = starts;
+  j["seconds"] = rep.seconds;
+  j["noise"] = {{"sigma", rep.noise_sigma}, {"floor_percent", rep.noise_floor_percent}};
+  j["data_scales"] = {{"displacement_resolution", rep.displacement_resolution},
+                      {"largest_travel", rep.largest_travel},
+                      {"presliding_travel", rep.presliding_travel}};
+  return j;
+}
+
+}  // namespace friction
