@@ -69,6 +69,12 @@ install_test() {
   out=$("$tmp/example/friction-compensation") || { echo "$out"; die "the example failed"; }
   echo "$out"
   grep -q '^compensation check: OK$' <<<"$out" || die "the example did not report its check"
+
+  say "Running the example on a saved model (data/true-model.json)"
+  out=$("$tmp/example/friction-compensation" data/true-model.json) ||
+    { echo "$out"; die "the example failed on the saved model"; }
+  echo "$out"
+  grep -q '^saved-model check: OK$' <<<"$out" || die "the example did not check the saved model"
 }
 
 sanitizer_pass() {
