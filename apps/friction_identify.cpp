@@ -2,4 +2,6 @@
 // The commands are in src/cli/; see cli.md for the contract.
 #include "cli.hpp"
 
-int main(int argc, char** argv) { return friction::cli::run(argc, argv); }
+int main(int argc, char** argv) {
+  return friction::cli::run(argc, argv);
+}

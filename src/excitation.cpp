@@ -19,10 +19,14 @@ ExcitationKind parse_excitation_kind(const std::string& name) {
 
 std::string to_string(ExcitationKind kind) {
   switch (kind) {
-    case ExcitationKind::Presliding: return "presliding";
-    case ExcitationKind::Strokes: return "strokes";
-    case ExcitationKind::Multisine: return "multisine";
-    case ExcitationKind::Combined: return "combined";
+    case ExcitationKind::Presliding:
+      return "presliding";
+    case ExcitationKind::Strokes:
+      return "strokes";
+    case ExcitationKind::Multisine:
+      return "multisine";
+    case ExcitationKind::Combined:
+      return "combined";
   }
   return "?";
 }
@@ -122,9 +126,8 @@ void strokes(Builder& b, const ExcitationOptions& o) {
 // Moves from the current position to `target` along a half cosine lasting `duration`.
 void half_cosine_to(Builder& b, double target, double duration) {
   const double distance = target - b.x();
-  b.displacement_segment(duration, [&](double t) {
-    return distance * 0.5 * (1 - std::cos(kPi * t / duration));
-  });
+  b.displacement_segment(
+      duration, [&](double t) { return distance * 0.5 * (1 - std::cos(kPi * t / duration)); });
 }
 
 void presliding(Builder& b, const ExcitationOptions& o) {
@@ -186,8 +189,12 @@ Signal make_excitation(const ExcitationOptions& o) {
       presliding(b, o);
       break;
     }
-    case ExcitationKind::Strokes: strokes(b, o); break;
-    case ExcitationKind::Multisine: multisine(b, o, o.seed); break;
+    case ExcitationKind::Strokes:
+      strokes(b, o);
+      break;
+    case ExcitationKind::Multisine:
+      multisine(b, o, o.seed);
+      break;
     case ExcitationKind::Combined:
       strokes(b, o);
       stroke(b, 0.5 * o.stroke, o.speeds.front(), o.reversal_time, o.dwell);

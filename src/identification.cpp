@@ -41,8 +41,8 @@ double travel_at_force_fraction(std::span<const double> x, std::span<const doubl
                                 double fraction) {
   FRICTION_CHECK(x.size() == force.size() && x.size() >= 2,
                  "travel_at_force_fraction: displacement and force lengths differ");
-  FRICTION_CHECK(fraction > 0.0 && fraction <= 1.0, "travel_at_force_fraction: fraction ",
-                 fraction, " must be in (0, 1]");
+  FRICTION_CHECK(fraction > 0.0 && fraction <= 1.0, "travel_at_force_fraction: fraction ", fraction,
+                 " must be in (0, 1]");
   const double range = 2.0 * largest_travel(x);
   const double h = std::max(3.0 * displacement_resolution(x), 1e-4 * range);
   // Turning points with hysteresis h.
@@ -51,14 +51,20 @@ double travel_at_force_fraction(std::span<const double> x, std::span<const doubl
   std::size_t ext = 0;
   for (std::size_t t = 1; t < x.size(); ++t) {
     if (dir == 0) {
-      if (x[t] - x[0] > h) dir = +1, ext = t;
-      else if (x[0] - x[t] > h) dir = -1, ext = t;
+      if (x[t] - x[0] > h)
+        dir = +1, ext = t;
+      else if (x[0] - x[t] > h)
+        dir = -1, ext = t;
     } else if (dir > 0) {
-      if (x[t] > x[ext]) ext = t;
-      else if (x[ext] - x[t] > h) turns.push_back(ext), dir = -1, ext = t;
+      if (x[t] > x[ext])
+        ext = t;
+      else if (x[ext] - x[t] > h)
+        turns.push_back(ext), dir = -1, ext = t;
     } else {
-      if (x[t] < x[ext]) ext = t;
-      else if (x[t] - x[ext] > h) turns.push_back(ext), dir = +1, ext = t;
+      if (x[t] < x[ext])
+        ext = t;
+      else if (x[t] - x[ext] > h)
+        turns.push_back(ext), dir = +1, ext = t;
     }
   }
   turns.push_back(x.size() - 1);

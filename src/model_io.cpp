@@ -61,16 +61,26 @@ Json curve_to(const StribeckCurve<double>& c) {
 // Main parameter of each effect: what "--effect NAME=VALUE" sets.
 std::string_view main_parameter(Effect e) {
   switch (e) {
-    case Effect::viscous: return "viscous";
-    case Effect::stribeck: return "static";
-    case Effect::frictional_lag: return "lag_time";
-    case Effect::asymmetry: return "asymmetry";
-    case Effect::offset: return "offset";
-    case Effect::inertia: return "mass";
-    case Effect::position_dependence: return "amplitude";
-    case Effect::drift: return "relative_rate";
-    case Effect::delay: return "delay";
-    case Effect::normal_load: return "friction_coefficient";
+    case Effect::viscous:
+      return "viscous";
+    case Effect::stribeck:
+      return "static";
+    case Effect::frictional_lag:
+      return "lag_time";
+    case Effect::asymmetry:
+      return "asymmetry";
+    case Effect::offset:
+      return "offset";
+    case Effect::inertia:
+      return "mass";
+    case Effect::position_dependence:
+      return "amplitude";
+    case Effect::drift:
+      return "relative_rate";
+    case Effect::delay:
+      return "delay";
+    case Effect::normal_load:
+      return "friction_coefficient";
   }
   return "";
 }
@@ -114,11 +124,13 @@ ExtensionParameters<double> extensions_from_json(const Json& j, const std::strin
       continue;
     }
     const auto effect = effect_from_name(name);
-    if (!effect) bad(source, "extensions: unknown effect \"" + name + "\" (known: " + effect_names() + ")");
+    if (!effect)
+      bad(source, "extensions: unknown effect \"" + name + "\" (known: " + effect_names() + ")");
     if (!params.is_object()) bad(source, "extensions: \"" + name + "\" must be an object");
     ext.enable(*effect);
     for (const auto& [key, value] : params.items()) {
-      if (!value.is_number()) bad(source, "extensions." + name + ": \"" + key + "\" must be a number");
+      if (!value.is_number())
+        bad(source, "extensions." + name + ": \"" + key + "\" must be a number");
       if (!set_parameter(ext, *effect, key, value.get<double>()))
         bad(source, "extensions." + name + ": unknown parameter \"" + key + "\"");
     }
@@ -161,7 +173,8 @@ AnyModel AnyModel::from_json(const Json& document, const std::string& source) {
       bad(source, where + ": \"spring_filter\" must have one row of taps per threshold");
     std::size_t taps = 0;
     for (const Json& row : p.at("spring_filter")) {
-      if (!row.is_array() || row.empty()) bad(source, where + ": spring_filter rows must be arrays");
+      if (!row.is_array() || row.empty())
+        bad(source, where + ": spring_filter rows must be arrays");
       if (taps == 0) taps = row.size();
       if (row.size() != taps) bad(source, where + ": spring_filter rows must be equally long");
       for (const Json& e : row) {
@@ -207,7 +220,8 @@ AnyModel AnyModel::from_json(const Json& document, const std::string& source) {
     sp.viscous = number_or(p, "viscous", 0.0, where, source);
     return AnyModel(extend(StaticFriction<double>(sp), ext));
   }
-  bad(source, "model: unknown type \"" + type + "\" (one of maxwell-slip, dnlrx, lugre, gms, static)");
+  bad(source,
+      "model: unknown type \"" + type + "\" (one of maxwell-slip, dnlrx, lugre, gms, static)");
 }
 
 AnyModel AnyModel::load(const std::string& path) {
@@ -260,17 +274,18 @@ Json AnyModel::to_json() const {
           j["units"] = {{"threshold", "m"}, {"spring_filter", "N/m"}, {"input_filter", "N/m"}};
         } else if constexpr (std::is_same_v<Base, LuGre<double>>) {
           j["type"] = "lugre";
-          j["parameters"] = {{"stiffness", p.stiffness},
-                             {"micro_damping", p.micro_damping},
-                             {"viscous", p.viscous},
-                             {"coulomb", p.coulomb},
-                             {"static", p.static_force},
-                             {"stribeck_velocity", p.stribeck_velocity},
-                             {"stribeck_exponent", p.stribeck_exponent},
-                             {"shape", p.shape == StribeckShape::Rational ? "rational" : "exponential"}};
-          j["units"] = {{"stiffness", "N/m"},        {"micro_damping", "N s/m"},
-                        {"viscous", "N s/m"},        {"coulomb", "N"},
-                        {"static", "N"},             {"stribeck_velocity", "m/s"},
+          j["parameters"] = {
+              {"stiffness", p.stiffness},
+              {"micro_damping", p.micro_damping},
+              {"viscous", p.viscous},
+              {"coulomb", p.coulomb},
+              {"static", p.static_force},
+              {"stribeck_velocity", p.stribeck_velocity},
+              {"stribeck_exponent", p.stribeck_exponent},
+              {"shape", p.shape == StribeckShape::Rational ? "rational" : "exponential"}};
+          j["units"] = {{"stiffness", "N/m"},      {"micro_damping", "N s/m"},
+                        {"viscous", "N s/m"},      {"coulomb", "N"},
+                        {"static", "N"},           {"stribeck_velocity", "m/s"},
                         {"stribeck_exponent", "1"}};
         } else if constexpr (std::is_same_v<Base, Gms<double>>) {
           j["type"] = "gms";
@@ -279,15 +294,23 @@ Json AnyModel::to_json() const {
           j["parameters"]["share"] = p.share;
           j["parameters"]["attraction"] = p.attraction;
           j["parameters"]["viscous"] = p.viscous;
-          j["units"] = {{"stiffness", "N/m"}, {"share", "1"},       {"coulomb", "N"},
-                        {"static", "N"},      {"stribeck_velocity", "m/s"},
-                        {"stribeck_exponent", "1"}, {"attraction", "N/s"}, {"viscous", "N s/m"}};
+          j["units"] = {{"stiffness", "N/m"},
+                        {"share", "1"},
+                        {"coulomb", "N"},
+                        {"static", "N"},
+                        {"stribeck_velocity", "m/s"},
+                        {"stribeck_exponent", "1"},
+                        {"attraction", "N/s"},
+                        {"viscous", "N s/m"}};
         } else {
           j["type"] = "static";
           j["parameters"] = curve_to(p.curve);
           j["parameters"]["viscous"] = p.viscous;
-          j["units"] = {{"coulomb", "N"}, {"static", "N"}, {"stribeck_velocity", "m/s"},
-                        {"stribeck_exponent", "1"}, {"viscous", "N s/m"}};
+          j["units"] = {{"coulomb", "N"},
+                        {"static", "N"},
+                        {"stribeck_velocity", "m/s"},
+                        {"stribeck_exponent", "1"},
+                        {"viscous", "N s/m"}};
         }
         if (!ext.extensions().empty() || ext.extensions().reference_force != 0.0)
           j["extensions"] = extensions_to_json(ext.extensions());
@@ -296,7 +319,9 @@ Json AnyModel::to_json() const {
       model_);
 }
 
-std::string AnyModel::type() const { return kModelTypes[model_.index()]; }
+std::string AnyModel::type() const {
+  return kModelTypes[model_.index()];
+}
 
 std::size_t AnyModel::parameter_count() const {
   return std::visit(
@@ -322,14 +347,15 @@ std::size_t AnyModel::parameter_count() const {
 }
 
 const ExtensionParameters<double>& AnyModel::extensions() const {
-  return std::visit([](const auto& ext) -> const ExtensionParameters<double>& {
-    return ext.extensions();
-  }, model_);
+  return std::visit(
+      [](const auto& ext) -> const ExtensionParameters<double>& { return ext.extensions(); },
+      model_);
 }
 
 AnyModel AnyModel::with_extensions(const ExtensionParameters<double>& extensions) const {
   return std::visit(
-      [&](const auto& ext) -> AnyModel { return AnyModel(extend(ext.base(), extensions)); }, model_);
+      [&](const auto& ext) -> AnyModel { return AnyModel(extend(ext.base(), extensions)); },
+      model_);
 }
 
 void AnyModel::reset() {

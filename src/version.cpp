@@ -1,5 +1,7 @@
 #include "friction/version.hpp"
 
 namespace friction {
-const char* version() noexcept { return FRICTION_VERSION_STRING; }
+const char* version() noexcept {
+  return FRICTION_VERSION_STRING;
+}
 }  // namespace friction

@@ -2,8 +2,8 @@
 // presliding + sliding excitation (decaying sinusoids, then strokes), plus white force noise.
 #pragma once
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <random>
 #include <vector>
@@ -29,8 +29,8 @@ inline std::vector<double> excitation(std::size_t n, double amplitude, int varia
   for (std::size_t k = 0; k < n1; ++k) {
     const double u = static_cast<double>(k) / static_cast<double>(n1);
     const double env = amplitude * std::pow(0.1, u);
-    x[k] = env * (0.8 * std::sin(2 * M_PI * f1 * u + 0.3 * variant) +
-                  0.2 * std::sin(2 * M_PI * f2 * u));
+    x[k] = env *
+           (0.8 * std::sin(2 * M_PI * f1 * u + 0.3 * variant) + 0.2 * std::sin(2 * M_PI * f2 * u));
   }
   // Strokes: triangle waves between -amplitude and +amplitude, slow then fast.
   double pos = x[n1 - 1];
@@ -63,7 +63,8 @@ inline Record synthetic_record(const MaxwellSlipParameters<double>& p, std::size
   for (std::size_t k = 0; k < n; ++k) r.time[k] = 1e-3 * static_cast<double>(k);
   MaxwellSlip<double> model(p);
   model.reset(std::span<const double>(initial));
-  r.force = simulate(model, std::span<const double>(r.time), std::span<const double>(r.displacement));
+  r.force =
+      simulate(model, std::span<const double>(r.time), std::span<const double>(r.displacement));
   std::mt19937 gen(seed);
   std::normal_distribution<double> normal(0.0, sigma);
   if (noise) noise->resize(n);

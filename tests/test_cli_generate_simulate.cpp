@@ -55,12 +55,17 @@ TEST(CliGenerate, NoiseHasTheRequestedLevelAndTheSeedReproducesIt) {
   TempDir dir;
   const std::string a = dir.file("a.csv"), b = dir.file("b.csv"), c = dir.file("c.csv"),
                     truth = dir.file("t.json");
-  ASSERT_EQ(run_cli("generate" + kShort + "--noise 0.05 --seed 9 --out " + a + " --truth " + truth).status, 0);
+  ASSERT_EQ(run_cli("generate" + kShort + "--noise 0.05 --seed 9 --out " + a + " --truth " + truth)
+                .status,
+            0);
   ASSERT_EQ(run_cli("generate" + kShort + "--noise 0.05 --seed 9 --out " + b).status, 0);
   ASSERT_EQ(run_cli("generate" + kShort + "--noise 0.05 --seed 10 --out " + c).status, 0);
   EXPECT_EQ(friction::testing::read_text(a), friction::testing::read_text(b));
   EXPECT_NE(friction::testing::read_text(a), friction::testing::read_text(c));
-  ASSERT_EQ(run_cli("simulate --model-file " + truth + " --data " + a + " --out " + dir.file("s.csv")).status, 0);
+  ASSERT_EQ(
+      run_cli("simulate --model-file " + truth + " --data " + a + " --out " + dir.file("s.csv"))
+          .status,
+      0);
   friction::ReadOptions o;
   o.columns.force = "residual";
   o.force_sign = friction::ForceSign::positive;
@@ -120,7 +125,9 @@ TEST(CliUsage, BadUsageExitsWithTwoAndBadDataWithOne) {
   EXPECT_NE(r.err.find("bad.csv:3:2"), std::string::npos) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
 
-  friction::testing::write_text(dir.file("bad.json"), "{\"type\": \"maxwell-slip\",\n \"parameters\": {\"stiffness\": [1e4], \"threshold\": [-1e-6]}}");
+  friction::testing::write_text(dir.file("bad.json"),
+                                "{\"type\": \"maxwell-slip\",\n \"parameters\": {\"stiffness\": "
+                                "[1e4], \"threshold\": [-1e-6]}}");
   r = run_cli("simulate --model-file " + dir.file("bad.json") + " --data " + rec);
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find("threshold"), std::string::npos) << r.err;
@@ -137,8 +144,10 @@ TEST(CliSimulate, NeverLeavesAHalfWrittenOutput) {
   ASSERT_EQ(run_cli("generate" + kShort + "--out " + rec + " --truth " + truth).status, 0);
   friction::testing::write_text(out, "precious\n");
   friction::testing::write_text(dir.file("bad.csv"), "time,x,force\n0,0,1\n0,1,2\n");
-  EXPECT_EQ(run_cli("simulate --model-file " + truth + " --data " + dir.file("bad.csv") +
-                    " --out " + out).status, 1);
+  EXPECT_EQ(
+      run_cli("simulate --model-file " + truth + " --data " + dir.file("bad.csv") + " --out " + out)
+          .status,
+      1);
   EXPECT_EQ(friction::testing::read_text(out), "precious\n");
 }
 

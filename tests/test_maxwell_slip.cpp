@@ -51,7 +51,7 @@ TEST(MaxwellSlip, OddSymmetryFromVirginState) {
 TEST(MaxwellSlip, ClosedMinorLoopReturnsToItsStartingForce) {
   auto m = four_operators();
   double x = 0;
-  drive(m, x, 20e-6);                    // slide to the right
+  drive(m, x, 20e-6);                      // slide to the right
   const double start = drive(m, x, 8e-6);  // reverse into presliding
   drive(m, x, 12e-6);                      // reversal at 8 um, inner excursion ...
   const double back = drive(m, x, 8e-6);   // ... and back to the reversal point: the loop closes

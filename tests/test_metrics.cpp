@@ -44,7 +44,8 @@ TEST(Metrics, RejectsUnusableInput) {
   EXPECT_THROW(compute_errors(a, b), friction::InvalidParameter);
   EXPECT_THROW(compute_errors(std::vector<double>(3, 0.0), std::vector<double>(3, 1.0)),
                friction::InvalidParameter);
-  EXPECT_THROW(compute_errors(std::vector<double>{}, std::vector<double>{}), friction::InvalidParameter);
+  EXPECT_THROW(compute_errors(std::vector<double>{}, std::vector<double>{}),
+               friction::InvalidParameter);
 }
 
 TEST(Metrics, NoiseFloorFormula) {

@@ -11,8 +11,8 @@
 // outside the loop; `step` is allocation-free and noexcept, so it can live in a real-time task.
 //
 // The program checks what it prints: once every operator slips, the compensation must equal the
-// sliding friction sum_i k_i Delta_i (Maxwell Slip eq. 5), and the loop must not allocate.  It exits
-// non-zero otherwise, which is what the install test of the project relies on.
+// sliding friction sum_i k_i Delta_i (Maxwell Slip eq. 5), and the loop must not allocate.  It
+// exits non-zero otherwise, which is what the install test of the project relies on.
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -34,8 +34,12 @@ void* operator new(std::size_t size) {
   if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
   throw std::bad_alloc();
 }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  std::free(p);
+}
 
 // With a saved model (the JSON that `friction-identify identify --out` or `generate --truth`
 // writes): load it at start-up, then run the same control loop with it.  The model is checked to
@@ -59,9 +63,10 @@ int run_saved_model(const char* path) {
     work += f * dx;  // friction resists the motion: positive work by the drive
   }
   const long loop_allocations = g_allocations.load() - allocations_before;
-  std::printf("saved %s model from %s: peak compensation %.6f N, drive work %.3e J, "
-              "allocations in the loop: %ld\n",
-              model.type().c_str(), path, peak, work, loop_allocations);
+  std::printf(
+      "saved %s model from %s: peak compensation %.6f N, drive work %.3e J, "
+      "allocations in the loop: %ld\n",
+      model.type().c_str(), path, peak, work, loop_allocations);
   const bool ok = finite && peak > 0.0 && work > 0.0 && loop_allocations == 0;
   std::printf("%s\n", ok ? "saved-model check: OK" : "saved-model check: FAILED");
   return ok ? EXIT_SUCCESS : EXIT_FAILURE;
@@ -71,13 +76,13 @@ int main(int argc, char** argv) {
   if (argc > 1) return run_saved_model(argv[1]);
 
   // Four elasto-slide operators, as identified for a small linear axis (SI units).
-  const double stiffness[] = {4e4, 3e4, 2e4, 1e4};         // k_i [N/m]
-  const double threshold[] = {1e-6, 3e-6, 7e-6, 15e-6};    // Delta_i [m]
-  double expected_sliding = 0.0;                           // sum_i k_i Delta_i [N]
+  const double stiffness[] = {4e4, 3e4, 2e4, 1e4};       // k_i [N/m]
+  const double threshold[] = {1e-6, 3e-6, 7e-6, 15e-6};  // Delta_i [m]
+  double expected_sliding = 0.0;                         // sum_i k_i Delta_i [N]
   for (int i = 0; i < 4; ++i) expected_sliding += stiffness[i] * threshold[i];
 
-  friction::MaxwellSlip<double> model({{std::begin(stiffness), std::end(stiffness)},
-                                       {std::begin(threshold), std::end(threshold)}});
+  friction::MaxwellSlip<double> model(
+      {{std::begin(stiffness), std::end(stiffness)}, {std::begin(threshold), std::end(threshold)}});
 
   // Reference: a 100 um, 0.5 Hz sinusoidal stroke, sampled by a 1 kHz control loop for 4 s.
   constexpr double rate = 1000.0;  // [Hz]

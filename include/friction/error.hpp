@@ -72,10 +72,9 @@ template <class E, class... Args>
 }  // namespace friction
 
 /// Always-on check: throws `ErrorType` with the streamed message when `cond` is false.
-#define FRICTION_CHECK_AS(ErrorType, cond, ...)                                              \
-  do {                                                                                      \
-    if (!(cond))                                                                            \
-      ::friction::detail::throw_with_message<ErrorType>(__VA_ARGS__);                      \
+#define FRICTION_CHECK_AS(ErrorType, cond, ...)                                  \
+  do {                                                                           \
+    if (!(cond)) ::friction::detail::throw_with_message<ErrorType>(__VA_ARGS__); \
   } while (false)
 
 /// Always-on parameter check (throws friction::InvalidParameter).

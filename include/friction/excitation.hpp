@@ -31,21 +31,21 @@ std::string to_string(ExcitationKind kind);
 
 struct ExcitationOptions {
   ExcitationKind kind = ExcitationKind::Combined;
-  double rate = 1000.0;          ///< sampling rate [Hz]
+  double rate = 1000.0;                 ///< sampling rate [Hz]
   double presliding_amplitude = 20e-6;  ///< largest presliding amplitude [m]
   double presliding_frequency = 2.0;    ///< presliding sinusoid frequency [Hz]
   int presliding_cycles = 8;            ///< cycles of decreasing amplitude
   double presliding_decay = 0.75;       ///< amplitude ratio of successive cycles, in (0, 1)
   double stroke = 1e-3;                 ///< stroke length, end to end [m]
   std::vector<double> speeds{2e-4, 5e-4, 1e-3, 2e-3, 5e-3};  ///< stroke speeds [m/s]
-  double dwell = 0.05;                  ///< rest at each stroke end [s]
-  double reversal_time = 0.02;          ///< duration of each raised-cosine speed change [s]
-  double multisine_amplitude = 0.5e-3;  ///< peak displacement of the multisine [m]
-  double multisine_min_frequency = 0.2; ///< [Hz]
-  double multisine_max_frequency = 10;  ///< [Hz]
+  double dwell = 0.05;                                       ///< rest at each stroke end [s]
+  double reversal_time = 0.02;           ///< duration of each raised-cosine speed change [s]
+  double multisine_amplitude = 0.5e-3;   ///< peak displacement of the multisine [m]
+  double multisine_min_frequency = 0.2;  ///< [Hz]
+  double multisine_max_frequency = 10;   ///< [Hz]
   int multisine_components = 16;
-  double multisine_duration = 10.0;     ///< [s]
-  std::uint64_t seed = 1;               ///< phases of the multisine
+  double multisine_duration = 10.0;  ///< [s]
+  std::uint64_t seed = 1;            ///< phases of the multisine
   void validate() const;
 };
 

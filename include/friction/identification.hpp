@@ -34,11 +34,11 @@ namespace friction {
 
 /// One estimated parameter with its standard error and 95 % interval.
 struct ParameterEstimate {
-  std::string name;            ///< e.g. "stiffness[1]", "threshold[3]", "input_filter[0]"
-  std::string unit;            ///< SI unit
+  std::string name;  ///< e.g. "stiffness[1]", "threshold[3]", "input_filter[0]"
+  std::string unit;  ///< SI unit
   double value = 0;
-  double standard_error = 0;   ///< 0 when not available (see the warnings)
-  double lower95 = 0;          ///< 95 % interval (log-normal for positive parameters)
+  double standard_error = 0;  ///< 0 when not available (see the warnings)
+  double lower95 = 0;         ///< 95 % interval (log-normal for positive parameters)
   double upper95 = 0;
 };
 
@@ -52,23 +52,23 @@ struct SelectionRow {
   double rss_sss_percent = 0;    ///< estimation RSS/SSS [%]
   double criterion = 0;          ///< BIC = N ln(RSS/N) + p ln N
   bool selected = false;
-  bool failed = false;           ///< the fit failed (message in the warnings)
+  bool failed = false;  ///< the fit failed (message in the warnings)
 };
 
 /// What the local optimiser reported for the selected model.
 struct ConvergenceSummary {
   bool converged = false;
-  int iterations = 0;          ///< of the final local search
-  int local_searches = 0;      ///< over the whole selection
-  double initial_cost = 0;     ///< RSS/SSS % at the start of the final local search
-  double final_cost = 0;       ///< RSS/SSS % at its end
+  int iterations = 0;       ///< of the final local search
+  int local_searches = 0;   ///< over the whole selection
+  double initial_cost = 0;  ///< RSS/SSS % at the start of the final local search
+  double final_cost = 0;    ///< RSS/SSS % at its end
   std::string message;
 };
 
 /// One start of the multi-start / global stage and where it ended.
 struct StartLog {
-  std::size_t operators = 0;             ///< M of the fit
-  std::string kind;                      ///< "force-quantiles", "geometric", "warm", "nlopt-crs2", ...
+  std::size_t operators = 0;  ///< M of the fit
+  std::string kind;           ///< "force-quantiles", "geometric", "warm", "nlopt-crs2", ...
   std::vector<double> start_thresholds;  ///< [m]
   double start_percent = 0;              ///< RSS/SSS % at the start (concentrated cost)
   double final_percent = 0;              ///< RSS/SSS % at the local minimum
@@ -78,23 +78,23 @@ struct StartLog {
 
 /// Everything an identification returns besides the model itself.
 struct IdentificationReport {
-  ErrorMetrics estimation;                     ///< free run on the estimation record
-  std::vector<double> estimation_simulated;    ///< that free run [N]
-  double noise_sigma = 0;                      ///< estimate_white_noise_sigma of the force [N]
-  double noise_floor_percent = 0;              ///< RSS/SSS % of that noise alone
-  std::vector<ParameterEstimate> parameters;   ///< in the model's order
-  Eigen::MatrixXd correlation;                 ///< of `parameters` (identity where unknown)
-  std::vector<double> initial_deflections;     ///< estimated delta_i(0) [m]
+  ErrorMetrics estimation;                    ///< free run on the estimation record
+  std::vector<double> estimation_simulated;   ///< that free run [N]
+  double noise_sigma = 0;                     ///< estimate_white_noise_sigma of the force [N]
+  double noise_floor_percent = 0;             ///< RSS/SSS % of that noise alone
+  std::vector<ParameterEstimate> parameters;  ///< in the model's order
+  Eigen::MatrixXd correlation;                ///< of `parameters` (identity where unknown)
+  std::vector<double> initial_deflections;    ///< estimated delta_i(0) [m]
   std::string initial_state = "estimated";
   std::string criterion = "BIC";
-  std::vector<SelectionRow> selection;         ///< the order-selection table
-  std::vector<StartLog> starts;                ///< log of the starts and the global stage
+  std::vector<SelectionRow> selection;  ///< the order-selection table
+  std::vector<StartLog> starts;         ///< log of the starts and the global stage
   std::vector<std::string> warnings;
   ConvergenceSummary convergence;
   double seconds = 0;
-  double displacement_resolution = 0;          ///< q [m]
-  double largest_travel = 0;                   ///< L [m]
-  double presliding_travel = 0;                ///< [m]
+  double displacement_resolution = 0;  ///< q [m]
+  double largest_travel = 0;           ///< L [m]
+  double presliding_travel = 0;        ///< [m]
 };
 
 /// Displacement resolution q of a record (see the header comment) [m].

@@ -71,7 +71,8 @@ inline ErrorMetrics compute_errors(std::span<const double> measured,
   m.rss_sss_percent = 100.0 * rss / sss;
   m.rms = std::sqrt(rss / static_cast<double>(n));
   m.max_abs = max_abs;
-  m.r_squared = centred > 0.0 ? 1.0 - rss / centred : (rss == 0.0 ? 1.0 : -std::numeric_limits<double>::infinity());
+  m.r_squared = centred > 0.0 ? 1.0 - rss / centred
+                              : (rss == 0.0 ? 1.0 : -std::numeric_limits<double>::infinity());
   return m;
 }
 

@@ -47,9 +47,9 @@ inline constexpr const char* kModelTypes[] = {"maxwell-slip", "dnlrx", "lugre", 
 /// A model of any type with its extensions, in double precision.
 class AnyModel {
  public:
-  using Variant = std::variant<Extended<MaxwellSlip<double>>, Extended<Dnlrx<double>>,
-                               Extended<LuGre<double>>, Extended<Gms<double>>,
-                               Extended<StaticFriction<double>>>;
+  using Variant =
+      std::variant<Extended<MaxwellSlip<double>>, Extended<Dnlrx<double>>, Extended<LuGre<double>>,
+                   Extended<Gms<double>>, Extended<StaticFriction<double>>>;
   using Scalar = double;
 
   explicit AnyModel(Variant model) : model_(std::move(model)) {}

@@ -20,8 +20,8 @@ namespace friction {
 /// Simulate `model` on displacement `x` [m] sampled at `time` [s]; writes the force [N] to `force`.
 /// `level`, when not empty, is the slip-force scale factor per sample (methods.md section 7).
 template <class Model, typename T = typename Model::Scalar>
-void simulate(Model& model, std::span<const double> time, std::span<const T> x,
-              std::span<T> force, std::span<const T> level = {}) {
+void simulate(Model& model, std::span<const double> time, std::span<const T> x, std::span<T> force,
+              std::span<const T> level = {}) {
   static_assert(FrictionModel<Model>,
                 "simulate() needs a friction model: Scalar, reset() and step(const Motion<T>&)");
   FRICTION_CHECK(time.size() == x.size() && force.size() == x.size(),

@@ -19,9 +19,9 @@ int run(int argc, char** argv);
 
 /// Options every command that reads a record shares.
 struct InputOptions {
-  std::string columns;             ///< --columns
-  std::string units;               ///< --units
-  std::string force_sign = "auto"; ///< --force-sign
+  std::string columns;              ///< --columns
+  std::string units;                ///< --units
+  std::string force_sign = "auto";  ///< --force-sign
 };
 
 /// Output options (--format, --out).

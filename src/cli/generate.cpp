@@ -93,14 +93,10 @@ int run_generate(const GenerateOptions& o) {
     // With the record in a file, stdout tells what was generated.
     Json doc = new_document("generate");
     doc["model"] = model.to_json();
-    doc["record"] = {{"file", o.output.out},
-                     {"samples", record.size()},
-                     {"duration", record.time.back()},
-                     {"rate", o.rate},
-                     {"excitation", o.excitation},
-                     {"noise", o.noise},
-                     {"resolution", o.resolution},
-                     {"seed", o.seed},
+    doc["record"] = {{"file", o.output.out},           {"samples", record.size()},
+                     {"duration", record.time.back()}, {"rate", o.rate},
+                     {"excitation", o.excitation},     {"noise", o.noise},
+                     {"resolution", o.resolution},     {"seed", o.seed},
                      {"normal", record.has_normal()}};
     if (o.output.format == "json") {
       std::cout << doc.dump(2) << "\n";
@@ -108,8 +104,8 @@ int run_generate(const GenerateOptions& o) {
       std::cout << "generated " << record.size() << " samples (" << record.time.back() << " s at "
                 << o.rate << " Hz, " << o.excitation << ") from a " << model.type()
                 << " model into " << o.output.out << "\n"
-                << "noise " << o.noise << " N, encoder resolution " << o.resolution
-                << " m, seed " << o.seed << "\n";
+                << "noise " << o.noise << " N, encoder resolution " << o.resolution << " m, seed "
+                << o.seed << "\n";
       if (!ext.empty()) std::cout << "effects: " << extensions_to_json(ext).dump() << "\n";
     }
   }
@@ -120,10 +116,12 @@ int run_generate(const GenerateOptions& o) {
 
 Action register_generate(CLI::App& root) {
   auto o = std::make_shared<GenerateOptions>();
-  CLI::App* c = root.add_subcommand("generate", "Write a synthetic record from a model, an "
-                                                "excitation, effects, noise and a seed");
-  c->add_option("--model", o->model, "Model type: maxwell-slip, dnlrx, lugre, gms, static "
-                                     "(its reference system)")
+  CLI::App* c = root.add_subcommand("generate",
+                                    "Write a synthetic record from a model, an "
+                                    "excitation, effects, noise and a seed");
+  c->add_option("--model", o->model,
+                "Model type: maxwell-slip, dnlrx, lugre, gms, static "
+                "(its reference system)")
       ->capture_default_str();
   c->add_option("--model-file", o->model_file, "Use this saved model instead (JSON)");
   c->add_option("--excitation", o->excitation, "presliding, strokes, multisine or combined")

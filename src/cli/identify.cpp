@@ -117,8 +117,8 @@ Json validation_json(const Validation& v) {
 
 void print_errors(std::ostream& os, const char* label, const ErrorMetrics& e, double floor) {
   os << "  " << label << ": RSS/SSS " << fmt(e.rss_sss_percent) << " %, RMS " << fmt(e.rms)
-     << " N, max |e| " << fmt(e.max_abs) << " N, R^2 " << fixed(e.r_squared, 5)
-     << " (noise floor " << fmt(floor) << " %)\n";
+     << " N, max |e| " << fmt(e.max_abs) << " N, R^2 " << fixed(e.r_squared, 5) << " (noise floor "
+     << fmt(floor) << " %)\n";
 }
 
 void print_report(std::ostream& os, const IdentifiedModel& m) {
@@ -267,7 +267,8 @@ int run_compare(const CompareOptions& o) {
       row["error"] = e.what();
       std::cerr << "error: " << method_name(type) << ": " << e.what() << "\n";
     }
-    row["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    row["seconds"] =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     doc["methods"].push_back(row);
   }
   progress.done();
@@ -285,8 +286,8 @@ int run_compare(const CompareOptions& o) {
      << (o.validate.empty() ? "last " + fixed(100 * o.holdout, 0) + " % held out" : o.validate)
      << " (" << rs.validation.size() << " samples)\n\n";
   char line[200];
-  std::snprintf(line, sizeof line, "%-7s %7s %14s %14s %9s\n", "method", "params",
-                "estim. RSS/SSS", "valid. RSS/SSS", "seconds");
+  std::snprintf(line, sizeof line, "%-7s %7s %14s %14s %9s\n", "method", "params", "estim. RSS/SSS",
+                "valid. RSS/SSS", "seconds");
   os << line;
   for (const auto& row : doc["methods"]) {
     if (row.contains("error")) {
@@ -323,8 +324,9 @@ int run_compare(const CompareOptions& o) {
 
 Action register_identify(CLI::App& root) {
   auto o = std::make_shared<IdentifyOptions>();
-  CLI::App* c = root.add_subcommand("identify", "Estimate one model from --data, optionally "
-                                                "scored on --validate");
+  CLI::App* c = root.add_subcommand("identify",
+                                    "Estimate one model from --data, optionally "
+                                    "scored on --validate");
   c->add_option("--model", o->model, "lugre (LG), maxwell-slip (NLR) or dnlrx (DNLRX)")->required();
   c->add_option("--data", o->data, "Estimation record (CSV)")->required();
   c->add_option("--validate", o->validate, "Validation record (CSV)");
@@ -336,8 +338,9 @@ Action register_identify(CLI::App& root) {
 
 Action register_validate(CLI::App& root) {
   auto o = std::make_shared<ValidateOptions>();
-  CLI::App* c = root.add_subcommand("validate", "Score a saved model on a record (initial state "
-                                                "estimated from the record)");
+  CLI::App* c = root.add_subcommand("validate",
+                                    "Score a saved model on a record (initial state "
+                                    "estimated from the record)");
   c->add_option("--model-file", o->model_file, "Saved model (JSON), or an identify document")
       ->required();
   c->add_option("--data", o->data, "Record (CSV)")->required();
@@ -349,8 +352,9 @@ Action register_validate(CLI::App& root) {
 Action register_compare(CLI::App& root) {
   auto o = std::make_shared<CompareOptions>();
   CLI::App* c = root.add_subcommand(
-      "compare", "Identify LG, NLR and DNLRX on --data and score each on --validate: the paper's "
-                 "comparison");
+      "compare",
+      "Identify LG, NLR and DNLRX on --data and score each on --validate: the paper's "
+      "comparison");
   c->add_option("--data", o->data, "Estimation record (CSV)")->required();
   c->add_option("--validate", o->validate, "Validation record (CSV)");
   c->add_option("--holdout", o->holdout,

@@ -10,7 +10,9 @@ namespace friction::cli {
 Progress::Progress(bool enabled)
     : active_(enabled && isatty(STDERR_FILENO) == 1 && std::getenv("CI") == nullptr) {}
 
-Progress::~Progress() { done(); }
+Progress::~Progress() {
+  done();
+}
 
 void Progress::update(const std::string& message) {
   if (!active_) return;

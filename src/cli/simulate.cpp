@@ -40,9 +40,9 @@ int run_simulate(const SimulateOptions& o) {
 
 Action register_simulate(CLI::App& root) {
   auto o = std::make_shared<SimulateOptions>();
-  CLI::App* c = root.add_subcommand(
-      "simulate", "Run a saved model on the displacement of a record; write "
-                  "time,displacement,force,simulated,residual as CSV");
+  CLI::App* c = root.add_subcommand("simulate",
+                                    "Run a saved model on the displacement of a record; write "
+                                    "time,displacement,force,simulated,residual as CSV");
   c->add_option("--model-file", o->model_file, "Saved model (JSON), or a document containing one")
       ->required();
   c->add_option("--data", o->data, "Record (CSV) whose displacement drives the model")->required();

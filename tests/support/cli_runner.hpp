@@ -22,7 +22,8 @@ struct CliResult {
 class TempDir {
  public:
   TempDir() {
-    std::string pattern = (std::filesystem::temp_directory_path() / "friction-test-XXXXXX").string();
+    std::string pattern =
+        (std::filesystem::temp_directory_path() / "friction-test-XXXXXX").string();
     path_ = ::mkdtemp(pattern.data());
   }
   ~TempDir() {
@@ -53,7 +54,8 @@ inline CliResult run_cli(const std::string& args) {
   const std::string cli = env ? env : FRICTION_CLI;
   TempDir dir;
   const std::string out = dir.file("stdout"), err = dir.file("stderr");
-  const std::string command = "'" + cli + "' " + args + " >'" + out + "' 2>'" + err + "' </dev/null";
+  const std::string command =
+      "'" + cli + "' " + args + " >'" + out + "' 2>'" + err + "' </dev/null";
   const int raw = std::system(command.c_str());
   CliResult r;
   r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;

@@ -89,9 +89,9 @@ void expect_derivatives_match_finite_differences(const Factory& factory,
       num += (fj[k].v[0] - fd) * (fj[k].v[0] - fd);
       den += fd * fd;
     }
-    const double scale = std::max(1.0, *std::max_element(f0.begin(), f0.end(), [](double a, double b) {
-      return std::abs(a) < std::abs(b);
-    }));
+    const double scale = std::max(
+        1.0, *std::max_element(f0.begin(), f0.end(),
+                               [](double a, double b) { return std::abs(a) < std::abs(b); }));
     EXPECT_LE(value_err, 1e-12 * scale) << "Jet and double simulations differ";
     EXPECT_GT(den, 0.0) << "parameter " << p << " has no effect on the force";
     EXPECT_LE(std::sqrt(num), rel_tol * std::sqrt(den) + 1e-9)
