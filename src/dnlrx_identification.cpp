@@ -151,38 +151,64 @@ class DnlrxVpCost final : public ceres::CostFunction {
   }
   bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
     const std::size_t m = o_.m;
-    const std::vector<double> thr = sb_.thresholds({p[0], m});
-    std::vector<double> init(m);
-    for (std::size_t i = 0; i < m; ++i) init[i] = p[1][i] * thr[i];
-    const auto tr = detail::operator_trajectories(thr, init, r_.x, jacobians != nullptr);
-    const Eigen::MatrixXd phi = regressors(tr, r_.dx, o_);
-    const detail::Projector proj(phi, tol_);
-    const Eigen::VectorXd c = proj.solve(r_.y);
-    const Eigen::VectorXd res = (r_.y - phi * c) / r_.scale;
-    Eigen::Map<Eigen::VectorXd>(residuals, res.size()) = res;
+    const Eigen::Index mi = static_cast<Eigen::Index>(m);
+    // Ceres evaluates the cost at a trial point (its projected line search, then the candidate)
+    // and the Jacobian at the same point once the step is accepted: the trajectories (with their
+    // sensitivities, which cost little more), the projection and the residual are kept for the
+    // last point, and a repeated request only assembles what is missing.
+    const bool same = point_.size() == 2 * m && std::equal(p[0], p[0] + m, point_.begin()) &&
+                      std::equal(p[1], p[1] + m, point_.begin() + static_cast<std::ptrdiff_t>(m));
+    if (!same) {
+      thr_ = sb_.thresholds({p[0], m});
+      std::vector<double> init(m);
+      for (std::size_t i = 0; i < m; ++i) init[i] = p[1][i] * thr_[i];
+      detail::operator_trajectories(thr_, init, r_.x, true, tr_);
+      phi_ = regressors(tr_, r_.dx, o_);
+      proj_.compute(phi_, tol_);
+      c_ = proj_.solve(r_.y);
+      res_ = r_.y;
+      res_.noalias() -= phi_ * c_;
+      res_ /= r_.scale;
+      point_.assign(p[0], p[0] + m);
+      point_.insert(point_.end(), p[1], p[1] + m);
+      has_jacobian_ = false;
+    }
+    Eigen::Map<Eigen::VectorXd>(residuals, res_.size()) = res_;
     if (!jacobians) return true;
-    const Eigen::Index n = res.size(), mi = static_cast<Eigen::Index>(m);
-    // Columns d/dDelta_i (0..M-1) and d/drho_i (M..2M-1), projected at once.
-    Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n, 2 * mi), w = Eigen::MatrixXd::Zero(o_.columns(), 2 * mi);
-    for (std::size_t i = 0; i < m; ++i) {
-      const Eigen::Index ii = static_cast<Eigen::Index>(i);
-      const Eigen::VectorXd g = tr.d_threshold.col(ii) + p[1][i] * tr.d_initial.col(ii);
-      const Eigen::VectorXd h = thr[i] * tr.d_initial.col(ii);
-      for (int which = 0; which < 2; ++which) {
-        const Eigen::VectorXd& base = which == 0 ? g : h;
-        const Eigen::Index col = ii + which * mi;
-        for (std::size_t j = 0; j <= o_.n; ++j) {
-          const Eigen::VectorXd l = detail::lagged(base, static_cast<Eigen::Index>(j)) / r_.scale;
-          a.col(col) += c(o_.spring_column(i, j)) * l;
-          w(o_.spring_column(i, j), col) = l.dot(res) * r_.scale;
+    const Eigen::Index n = res_.size();
+    if (!has_jacobian_) {
+      // Columns d/dDelta_i (0..M-1) and d/drho_i (M..2M-1), projected at once.
+      a_.setZero(n, 2 * mi);
+      w_.setZero(o_.columns(), 2 * mi);
+      for (std::size_t i = 0; i < m; ++i) {
+        const Eigen::Index ii = static_cast<Eigen::Index>(i);
+        for (int which = 0; which < 2; ++which) {
+          const Eigen::Index col = ii + which * mi;
+          if (which == 0) base_ = tr_.d_threshold.col(ii) + p[1][i] * tr_.d_initial.col(ii);
+          else base_ = thr_[i] * tr_.d_initial.col(ii);
+          base_ /= r_.scale;
+          for (std::size_t j = 0; j <= o_.n; ++j) {
+            // The lag-j copy of base (the record extended backwards with its first value).
+            const Eigen::Index lag = static_cast<Eigen::Index>(j);
+            const double cij = c_(o_.spring_column(i, j));
+            double dot = 0.0;
+            for (Eigen::Index t = 0; t < n; ++t) {
+              const double l = base_(t >= lag ? t - lag : 0);
+              a_(t, col) += cij * l;
+              dot += l * res_(t);
+            }
+            w_(o_.spring_column(i, j), col) = dot * r_.scale;
+          }
         }
       }
+      proj_.derivatives_into(a_, w_, dr_);
+      jd_.resize(n, mi);
+      jd_.noalias() = dr_.leftCols(mi) * sb_.jacobian({p[0], m});
+      has_jacobian_ = true;
     }
-    const Eigen::MatrixXd dr = proj.derivatives(a, w);
-    const Eigen::MatrixXd jd = dr.leftCols(mi), jr = dr.rightCols(mi);
     using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-    if (jacobians[0]) Eigen::Map<RowMajor>(jacobians[0], n, mi) = jd * sb_.jacobian({p[0], m});
-    if (jacobians[1]) Eigen::Map<RowMajor>(jacobians[1], n, mi) = jr;
+    if (jacobians[0]) Eigen::Map<RowMajor>(jacobians[0], n, mi) = jd_;
+    if (jacobians[1]) Eigen::Map<RowMajor>(jacobians[1], n, mi) = dr_.rightCols(mi);
     return true;
   }
 
@@ -191,6 +217,13 @@ class DnlrxVpCost final : public ceres::CostFunction {
   Orders o_;
   detail::StickBreaking sb_;
   double tol_;
+  // The last point and what was computed there (see Evaluate).
+  mutable std::vector<double> point_, thr_;
+  mutable bool has_jacobian_ = false;
+  mutable detail::OperatorTrajectories tr_;
+  mutable Eigen::MatrixXd phi_, a_, w_, dr_, jd_;
+  mutable Eigen::VectorXd c_, res_, base_;
+  mutable detail::Projector proj_;
 };
 
 struct Reoptimised {

@@ -36,8 +36,16 @@ struct VpValue {
 struct Workspace {
   detail::OperatorTrajectories traj;
   detail::Projector proj;
+  detail::BoxLeastSquaresStorage nnls;
   Eigen::MatrixXd phi, a, w, dr, jd, jr, jac;
   VpValue v;
+  // The point (s, rho) the contents belong to.  Ceres evaluates the cost at a trial point (in its
+  // projected line search, then again as the candidate) and, when it accepts the step, the
+  // Jacobian at that same point: with the trajectories' sensitivities computed eagerly (they cost
+  // little more than the trajectories) the later requests only assemble what is missing.
+  std::vector<double> point;
+  bool has_sensitivities = false, has_jacobian = false;
+  bool eager = false;
 };
 
 // Projected residual and, optionally (ws.jac), its exact Jacobian w.r.t. (s, rho).
@@ -46,17 +54,27 @@ const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<c
   const std::size_t m = s.size();
   const Eigen::Index mi = static_cast<Eigen::Index>(m);
   const std::vector<double> thr = d.sb.thresholds(s);
-  std::vector<double> init(m);
-  for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
   auto& traj = ws.traj;
-  detail::operator_trajectories(thr, init, d.x, with_jacobian, traj);
   VpValue& v = ws.v;
-  const Eigen::VectorXd lo = Eigen::VectorXd::Zero(mi);
-  const Eigen::VectorXd hi = Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity());
-  v.k = detail::box_least_squares(traj.delta, d.y, lo, hi, &v.at_bound);
-  v.r = d.y;
-  v.r.noalias() -= traj.delta * v.k;
-  if (!with_jacobian) return v;
+  const bool same_point = ws.point.size() == 2 * m && std::equal(s.begin(), s.end(), ws.point.begin()) &&
+                          std::equal(rho.begin(), rho.end(), ws.point.begin() + static_cast<std::ptrdiff_t>(m));
+  if (!same_point || (with_jacobian && !ws.has_sensitivities)) {
+    std::vector<double> init(m);
+    for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
+    const bool sensitivities = with_jacobian || ws.eager;
+    detail::operator_trajectories(thr, init, d.x, sensitivities, traj);
+    const Eigen::VectorXd lo = Eigen::VectorXd::Zero(mi);
+    const Eigen::VectorXd hi = Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity());
+    v.k = detail::box_least_squares(traj.delta, d.y, lo, hi, &v.at_bound, &ws.nnls);
+    v.r = d.y;
+    v.r.noalias() -= traj.delta * v.k;
+    ws.point.assign(s.begin(), s.end());
+    ws.point.insert(ws.point.end(), rho.begin(), rho.end());
+    ws.has_sensitivities = sensitivities;
+    ws.has_jacobian = false;
+  }
+  if (!with_jacobian || ws.has_jacobian) return v;
+  ws.has_jacobian = true;
   const Eigen::Index n = traj.delta.rows();
   ws.jd.setZero(n, mi);
   ws.jr.setZero(n, mi);
@@ -85,7 +103,7 @@ const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<c
       ws.a.col(f) *= ki;
       ws.a.col(nf + f) *= ki;
     }
-    ws.dr = ws.proj.derivatives(ws.a, ws.w);
+    ws.proj.derivatives_into(ws.a, ws.w, ws.dr);
     for (Eigen::Index f = 0; f < nf; ++f) {
       const Eigen::Index i = free[static_cast<std::size_t>(f)];
       ws.jd.col(i) = ws.dr.col(f);
@@ -105,6 +123,7 @@ double percent_of(const Eigen::VectorXd& r) {
 class VpCost final : public ceres::CostFunction {
  public:
   VpCost(const Data& d, int m) : d_(d), m_(m) {
+    ws_.eager = true;
     set_num_residuals(static_cast<int>(d.y.size()));
     mutable_parameter_block_sizes()->push_back(m);
     mutable_parameter_block_sizes()->push_back(m);
@@ -230,8 +249,44 @@ std::vector<double> start_rho(const Data& d, const std::vector<double>& thr) {
   return rho;
 }
 
+// Stops a local search that cannot reach `target` (Ceres cost) within its iteration budget even if
+// it kept the pace of its last `kWindow` iterations: (best cost - target) > (iterations left) x
+// (decrease of the best cost per iteration over the window).  Searches that crawl along a valley
+// of this piecewise-smooth cost (one start on the README's record took all 100 iterations, at
+// 1e-5 relative per iteration, to end 75 % above the minimum another start had reached in 8) are
+// the ones it stops; a search still descending fast, or one that can still end within the
+// stall tolerance of the target, continues.  The extrapolation is linear, which over-estimates
+// what a decelerating search will gain.  Rejected steps count as iterations without progress,
+// which is why the window is not shorter.
+class HopelessSearch final : public ceres::IterationCallback {
+ public:
+  static constexpr std::size_t kWindow = 10;
+  HopelessSearch(double target, int max_iterations) : target_(target), max_iterations_(max_iterations) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
+    const double best = best_.empty() ? it.cost : std::min(best_.back(), it.cost);
+    best_.push_back(best);
+    const std::size_t k = best_.size() - 1;
+    if (!std::isfinite(target_) || k < kWindow || best <= target_) return ceres::SOLVER_CONTINUE;
+    const double pace = (best_[k - kWindow] - best) / static_cast<double>(kWindow);
+    const double left = static_cast<double>(std::max(0, max_iterations_ - static_cast<int>(k)));
+    if (best - target_ <= left * pace) return ceres::SOLVER_CONTINUE;
+    stopped_ = true;
+    return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+  }
+  bool stopped() const { return stopped_; }
+
+ private:
+  double target_;
+  int max_iterations_;
+  std::vector<double> best_;
+  bool stopped_ = false;
+};
+
+// `target` [RSS/SSS %]: the lowest cost already known to be reachable (HopelessSearch); infinity
+// disables the stop.
 Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho,
-                 const NlrOptions& o) {
+                 const NlrOptions& o,
+                 double target = std::numeric_limits<double>::infinity()) {
   const int m = static_cast<int>(s.size());
   for (double& v : s) v = std::clamp(v, 0.0, 1.0);
   Fit fit;
@@ -255,12 +310,17 @@ Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho,
     problem.SetParameterUpperBound(rho.data(), i, 1.0);
   }
   ceres::Solver::Summary summary;
-  ceres::Solve(solver_options(o), &problem, &summary);
+  ceres::Solver::Options so = solver_options(o);
   const double n = static_cast<double>(d.y.size());
+  HopelessSearch hopeless(target * (1.0 + o.stall_tolerance) * n / 200.0, o.max_iterations);
+  so.callbacks.push_back(&hopeless);
+  ceres::Solve(so, &problem, &summary);
   fit.start_percent = 100.0 * 2.0 * summary.initial_cost / n;
   fit.converged = summary.termination_type == ceres::CONVERGENCE;
   fit.iterations = static_cast<int>(summary.iterations.size());
   fit.message = summary.message;
+  if (hopeless.stopped())
+    fit.message = "stopped: at its pace it could not reach the best minimum already found";
   fit.s = s;
   fit.rho = rho;
   // Report the concentrated cost (for the joint solver too, stiffnesses re-solved by NNLS: the
@@ -292,7 +352,8 @@ struct Scales {
 
 // Fit M operators from the automatic starts, with the global stage when they disagree.
 Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previous,
-                  const Scales& sc, const NlrOptions& o, IdentificationReport& rep) {
+                  double previous_percent, const Scales& sc, const NlrOptions& o,
+                  IdentificationReport& rep) {
   std::vector<std::pair<std::string, std::vector<double>>> starts;
   std::vector<double> quant(m);
   for (std::size_t j = 0; j < m; ++j)
@@ -320,7 +381,9 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
       if (ext[g + 1] / ext[g] > ratio) ratio = ext[g + 1] / ext[g], best_gap = g;
     std::vector<double> warm = *previous;
     warm.push_back(std::sqrt(ext[best_gap] * ext[best_gap + 1]));
-    starts.emplace_back("warm", clamp_sorted(warm, sc.q, sc.travel));
+    // First: it starts at the (M-1)-operator minimum, so it sets the target that lets the other
+    // starts stop early when they cannot reach it (HopelessSearch).
+    starts.insert(starts.begin(), {"warm", clamp_sorted(warm, sc.q, sc.travel)});
   }
 
   Fit best;
@@ -341,8 +404,12 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
     ++rep.convergence.local_searches;
     if (f.percent < best.percent) best = f;
   };
+  // An M-operator model contains every (M-1)-operator one (an extra operator with stiffness 0), so
+  // the (M-1) minimum is reachable too: a start that cannot get below it or below what an earlier
+  // start reached is stopped.
   for (const auto& [kind, thr] : starts) {
-    const Fit f = local_search(d, d.sb.coordinates(thr), start_rho(d, thr), o);
+    const Fit f = local_search(d, d.sb.coordinates(thr), start_rho(d, thr), o,
+                               std::min(best.percent, previous_percent));
     record(kind, thr, f);
   }
 
@@ -378,7 +445,8 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
       // NLopt stops on round-off or budget; the best point seen is kept in ctx.
     }
     const std::vector<double> thr = d.sb.thresholds(ctx.best_s);
-    const Fit f = local_search(d, ctx.best_s, start_rho(d, thr), o);
+    const Fit f = local_search(d, ctx.best_s, start_rho(d, thr), o,
+                               std::min(best.percent, previous_percent));
     record("nlopt-crs2", thr, f);
   }
   return best;
@@ -459,11 +527,13 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
   const std::size_t m_hi = o.operators > 0 ? o.operators : o.max_operators;
   std::vector<Fit> fits;
   std::vector<double> previous;
+  double previous_percent = std::numeric_limits<double>::infinity();
   double best_bic = std::numeric_limits<double>::infinity();
   std::size_t best_index = 0;
   for (std::size_t m = m_lo; m <= m_hi; ++m) {
-    Fit fit = fit_operators(d, m, previous.empty() ? nullptr : &previous, sc, o, rep);
+    Fit fit = fit_operators(d, m, previous.empty() ? nullptr : &previous, previous_percent, sc, o, rep);
     previous = d.sb.thresholds(fit.s);
+    previous_percent = fit.percent;
     SelectionRow row;
     row.operators = m;
     std::size_t active = 0;

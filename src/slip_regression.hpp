@@ -2,11 +2,12 @@
 //
 // Operator trajectories.  With unit stiffness the Maxwell Slip operators' deflections delta_i(t)
 // are the regressors of both NLR (F = sum k_i delta_i) and DNLRX (lagged delta_i).  Operator i
-// depends only on its own threshold Delta_i and initial deflection delta_i(0).  That lets one
-// MaxwellSlip<ceres::Jet<double, 2>> run give every partial derivative needed: seed every
+// depends only on its own threshold Delta_i and initial deflection delta_i(0).  So one
+// MaxwellSlip<ceres::Jet<double, 2>> run would give every partial derivative needed: seed every
 // threshold with derivative (1, 0) and every initial deflection with (0, 1); since no operator
 // mixes with another, the Jet part of delta_i(t) is exactly
-// (d delta_i(t) / d Delta_i, d delta_i(t) / d delta_i(0)).  The second is the indicator "not yet
+// (d delta_i(t) / d Delta_i, d delta_i(t) / d delta_i(0)).  operator_trajectories computes that
+// recursion directly (identical numbers, a test checks it against the Jet run).  The second is the indicator "not yet
 // saturated" (1 until the operator first reaches a bound, 0 after), which is what the
 // initial-state estimation exploits.
 #pragma once
@@ -36,46 +37,54 @@ struct OperatorTrajectories {
 
 /// Deflections of unit-stiffness operators from the given initial deflections (clamped to the
 /// thresholds), sample 0 being the initial state and sample k > 0 the state after x[k]-x[k-1].
+///
+/// This is the recursion of MaxwellSlip<ceres::Jet<double, 2>> (eq. 4 with the clamp of
+/// scalar.hpp, which keeps the derivative of the branch taken) written out per operator: at the
+/// upper bound the derivatives are (1, 0), at the lower bound (-1, 0), and in between they are
+/// carried over unchanged.  The same numbers, bit for bit (test_nlr compares the two), without
+/// the Jet arithmetic and with each operator's column written contiguously: the identification
+/// evaluates this hundreds of times, so it runs operator by operator over the whole record.
 inline void operator_trajectories(std::span<const double> thresholds,
                                   std::span<const double> initial, std::span<const double> x,
                                   bool sensitivities, OperatorTrajectories& out) {
   const std::size_t m = thresholds.size();
+  FRICTION_CHECK(initial.size() == m, "Maxwell Slip: ", initial.size(), " initial deflections for ",
+                 m, " operators");
   const Eigen::Index n = static_cast<Eigen::Index>(x.size());
   const Eigen::Index mi = static_cast<Eigen::Index>(m);
   out.delta.resize(n, mi);
-  if (!sensitivities) {
-    MaxwellSlip<double> model({std::vector<double>(m, 1.0),
-                               std::vector<double>(thresholds.begin(), thresholds.end())});
-    model.reset(initial);
+  if (sensitivities) {
+    out.d_threshold.resize(n, mi);
+    out.d_initial.resize(n, mi);
+  }
+  for (Eigen::Index i = 0; i < mi; ++i) {
+    const double limit = thresholds[static_cast<std::size_t>(i)];
+    FRICTION_CHECK(std::isfinite(limit) && limit > 0.0, "Maxwell Slip: threshold[", i, "] = ",
+                   limit, " m must be finite and > 0");
+    double v = initial[static_cast<std::size_t>(i)], g_threshold = 0.0, g_initial = 1.0;
+    if (v > limit) v = limit, g_threshold = 1.0, g_initial = 0.0;
+    else if (v < -limit) v = -limit, g_threshold = -1.0, g_initial = 0.0;
+    double* delta = out.delta.col(i).data();
+    if (!sensitivities) {
+      for (Eigen::Index t = 0; t < n; ++t) {
+        const double dx = t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
+        const double u = v + dx;
+        v = u > limit ? limit : (u < -limit ? -limit : u);
+        delta[t] = v;
+      }
+      continue;
+    }
+    double* dt = out.d_threshold.col(i).data();
+    double* di = out.d_initial.col(i).data();
     for (Eigen::Index t = 0; t < n; ++t) {
       const double dx = t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
-      model.step(Motion<double>{dx, 0.0, 0.0});
-      const auto d = model.deflections();
-      for (Eigen::Index i = 0; i < mi; ++i) out.delta(t, i) = d[static_cast<std::size_t>(i)];
-    }
-    return;
-  }
-  using Jet = ceres::Jet<double, 2>;
-  MaxwellSlipParameters<Jet> p;
-  std::vector<Jet> start(m);
-  for (std::size_t i = 0; i < m; ++i) {
-    p.stiffness.push_back(Jet(1.0));
-    p.threshold.push_back(Jet(thresholds[i], 0));
-    start[i] = Jet(initial[i], 1);
-  }
-  MaxwellSlip<Jet> model(std::move(p));
-  model.reset(std::span<const Jet>(start));
-  out.d_threshold.resize(n, mi);
-  out.d_initial.resize(n, mi);
-  for (Eigen::Index t = 0; t < n; ++t) {
-    const double dx = t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
-    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0)});
-    const auto d = model.deflections();
-    for (Eigen::Index i = 0; i < mi; ++i) {
-      const Jet& j = d[static_cast<std::size_t>(i)];
-      out.delta(t, i) = j.a;
-      out.d_threshold(t, i) = j.v[0];
-      out.d_initial(t, i) = j.v[1];
+      const double u = v + dx;
+      if (u > limit) v = limit, g_threshold = 1.0, g_initial = 0.0;
+      else if (u < -limit) v = -limit, g_threshold = -1.0, g_initial = 0.0;
+      else v = u;
+      delta[t] = v;
+      dt[t] = g_threshold;
+      di[t] = g_initial;
     }
   }
 }
@@ -103,16 +112,43 @@ inline Eigen::VectorXd lagged(const Eigen::Ref<const Eigen::VectorXd>& c, Eigen:
 /// the free subproblems are solved by column-pivoted QR, so a rank-deficient free set gives a
 /// basic solution, never a NaN.  Converges in a finite number of steps for this convex problem.
 /// `at_bound` (optional) receives 1 for every variable left on a bound.
+///
+/// Compression: with A = Q R (Householder, N > P), ||A z - b||^2 = ||R z - Q^T b||^2 + const, so
+/// one O(N P^2) factorisation turns the problem into a P x P one and every active-set step (each a
+/// fresh QR of the free columns) costs O(P^3) instead of O(N P^2).  Q is orthogonal, so the
+/// column norms, the conditioning and hence the rank decisions are those of A itself.
+/// Storage box_least_squares may keep from call to call (N x P; see Workspace in nlr.cpp).
+struct BoxLeastSquaresStorage {
+  Eigen::MatrixXd scaled;
+  Eigen::VectorXd rhs;
+};
+
 inline Eigen::VectorXd box_least_squares(const Eigen::MatrixXd& a, const Eigen::VectorXd& b,
                                          const Eigen::VectorXd& lo, const Eigen::VectorXd& hi,
-                                         std::vector<int>* at_bound = nullptr) {
+                                         std::vector<int>* at_bound = nullptr,
+                                         BoxLeastSquaresStorage* storage = nullptr) {
   const Eigen::Index p = a.cols();
   Eigen::VectorXd scale(p);
   for (Eigen::Index j = 0; j < p; ++j) {
     const double s = a.col(j).norm();
     scale(j) = s > 0.0 ? s : 1.0;
   }
-  const Eigen::MatrixXd as = a * scale.cwiseInverse().asDiagonal();
+  Eigen::MatrixXd as;
+  Eigen::VectorXd bs;
+  if (a.rows() > p) {
+    BoxLeastSquaresStorage local;
+    BoxLeastSquaresStorage& big = storage ? *storage : local;
+    big.scaled.resize(a.rows(), p);
+    big.scaled.noalias() = a * scale.cwiseInverse().asDiagonal();
+    big.rhs = b;
+    Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(big.scaled);  // in place
+    big.rhs.applyOnTheLeft(qr.householderQ().adjoint());
+    as = big.scaled.topRows(p).template triangularView<Eigen::Upper>();
+    bs = big.rhs.head(p);
+  } else {
+    as = a * scale.cwiseInverse().asDiagonal();
+    bs = b;
+  }
   const Eigen::VectorXd l = lo.cwiseProduct(scale), h = hi.cwiseProduct(scale);
   // state: 0 free, -1 at lower, +1 at upper
   std::vector<int> state(static_cast<std::size_t>(p));
@@ -133,7 +169,7 @@ inline Eigen::VectorXd box_least_squares(const Eigen::MatrixXd& a, const Eigen::
       if (state[static_cast<std::size_t>(j)] == 0) free.push_back(j);
     target = z;
     if (free.empty()) return;
-    Eigen::VectorXd rhs = b;
+    Eigen::VectorXd rhs = bs;
     for (Eigen::Index j = 0; j < p; ++j)
       if (state[static_cast<std::size_t>(j)] != 0) rhs -= as.col(j) * z(j);
     Eigen::MatrixXd af(as.rows(), static_cast<Eigen::Index>(free.size()));
@@ -145,18 +181,10 @@ inline Eigen::VectorXd box_least_squares(const Eigen::MatrixXd& a, const Eigen::
   };
   // Fast path: the unconstrained solution is feasible (the usual case for stiffnesses).
   {
-    // Normal equations of the unit-norm columns when well conditioned, else rank-revealing QR.
-    Eigen::VectorXd zu;
-    bool feasible = true;
-    Eigen::LLT<Eigen::MatrixXd> gram(as.transpose() * as);
-    if (gram.info() == Eigen::Success && gram.rcond() > 1e-10) {
-      zu = gram.solve(as.transpose() * b);
-    } else {
-      Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(as);
-      qr.setThreshold(1e-12);
-      zu = qr.solve(b);
-      feasible = qr.rank() == p;
-    }
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(as);
+    qr.setThreshold(1e-12);
+    const Eigen::VectorXd zu = qr.solve(bs);
+    bool feasible = qr.rank() == p;
     for (Eigen::Index j = 0; j < p && feasible; ++j) feasible = zu(j) > l(j) && zu(j) < h(j);
     if (feasible) {
       if (at_bound) at_bound->assign(static_cast<std::size_t>(p), 0);
@@ -167,7 +195,7 @@ inline Eigen::VectorXd box_least_squares(const Eigen::MatrixXd& a, const Eigen::
   bool first = true;
   for (int outer = 0; outer < max_outer; ++outer) {
     if (!first) {
-      const Eigen::VectorXd w = as.transpose() * (b - as * z);  // minus the gradient
+      const Eigen::VectorXd w = as.transpose() * (bs - as * z);  // minus the gradient
       Eigen::Index best = -1;
       double best_w = tol;
       for (Eigen::Index j = 0; j < p; ++j) {
@@ -293,6 +321,22 @@ struct Projector {
     return q_ * (q_.transpose() * a - v) - a;
   }
 
+  /// The same into `out` (N x k), through storage kept from call to call: the variable-projection
+  /// Jacobians call this at every accepted step, and fresh N x k temporaries there cost more in
+  /// page faults than the arithmetic.
+  void derivatives_into(const Eigen::MatrixXd& a, const Eigen::MatrixXd& w, Eigen::MatrixXd& out) {
+    if (!use_gram_) {
+      out = derivatives(a, w);
+      return;
+    }
+    small_.resize(phis_.cols(), a.cols());
+    small_.noalias() = phis_.transpose() * a;
+    small_.noalias() -= scale.cwiseInverse().asDiagonal() * w;
+    gram_.solveInPlace(small_);
+    out = -a;
+    out.noalias() += phis_ * small_;
+  }
+
   Eigen::VectorXd derivative(const Eigen::VectorXd& a, const Eigen::VectorXd& w) const {
     if (use_gram_) {
       return -(a - phis_ * gram_.solve(phis_.transpose() * a)) - phis_ * gram_.solve(w.cwiseQuotient(scale));
@@ -313,6 +357,7 @@ struct Projector {
  private:
   Eigen::MatrixXd phis_;     // unit-norm columns
   Eigen::MatrixXd gram_matrix_;
+  Eigen::MatrixXd small_;  // P x k scratch of derivatives_into
   Eigen::LLT<Eigen::MatrixXd> gram_;
   bool use_gram_ = false;
   Eigen::MatrixXd q_;         // N x rank, orthonormal basis of the range (QR path)

@@ -4,8 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <limits>
+#include <random>
 #include <vector>
 
+#include "../src/slip_regression.hpp"
 #include "friction/initial_state.hpp"
 #include "friction/nlr.hpp"
 #include "identification_fixtures.hpp"
@@ -137,6 +140,69 @@ TEST(Nlr, ProjectedJacobianMatchesFiniteDifferences) {
     const Eigen::VectorXd fd = (fp - fm) / (2 * h);
     EXPECT_GT(fd.norm(), 0.0) << "parameter " << p << " has no effect";
     EXPECT_LE((jac.col(p) - fd).norm(), 1e-4 * fd.norm() + 1e-9) << "parameter " << p;
+  }
+}
+
+TEST(Nlr, OperatorTrajectoriesAreTheJetRunOfTheModel) {
+  // The hand-written recursion with sensitivities must give, bit for bit, what autodiff through
+  // MaxwellSlip<Jet<double, 2>> gives (thresholds seeded (1, 0), initial deflections (0, 1)),
+  // including initial deflections beyond the thresholds (clamped) and exactly at them.
+  const auto sys = four_operator_system();
+  const auto rec = synthetic_record(sys, 1200, 20e-6, 1, kSigma, 3, {0, 0, 0, 0}, nullptr);
+  const std::vector<double> thr{0.7e-6, 2e-6, 6e-6, 3e-5};
+  const std::vector<double> init{1e-6, -2e-6, 1e-6, -3e-5};
+  detail::OperatorTrajectories tr;
+  detail::operator_trajectories(thr, init, rec.displacement, true, tr);
+  using Jet = ceres::Jet<double, 2>;
+  MaxwellSlipParameters<Jet> p;
+  std::vector<Jet> start;
+  for (std::size_t i = 0; i < thr.size(); ++i) {
+    p.stiffness.push_back(Jet(1.0));
+    p.threshold.push_back(Jet(thr[i], 0));
+    start.push_back(Jet(init[i], 1));
+  }
+  MaxwellSlip<Jet> model(p);
+  model.reset(std::span<const Jet>(start));
+  int saturated = 0;
+  for (std::size_t t = 0; t < rec.size(); ++t) {
+    const double dx = t > 0 ? rec.displacement[t] - rec.displacement[t - 1] : 0.0;
+    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0)});
+    for (std::size_t i = 0; i < thr.size(); ++i) {
+      const Jet& j = model.deflections()[i];
+      const auto ti = static_cast<Eigen::Index>(t), ii = static_cast<Eigen::Index>(i);
+      ASSERT_EQ(tr.delta(ti, ii), j.a) << t << " " << i;
+      ASSERT_EQ(tr.d_threshold(ti, ii), j.v[0]) << t << " " << i;
+      ASSERT_EQ(tr.d_initial(ti, ii), j.v[1]) << t << " " << i;
+      saturated += j.v[0] != 0.0;
+    }
+  }
+  EXPECT_GT(saturated, 0);  // the comparison covered both branches
+  detail::OperatorTrajectories plain;
+  detail::operator_trajectories(thr, init, rec.displacement, false, plain);
+  EXPECT_TRUE(plain.delta == tr.delta);
+}
+
+TEST(Nlr, BoxLeastSquaresMatchesTheActiveSetOnTheFullProblem) {
+  // The compressed (R, Q^T b) active set must find the constrained minimum of the full problem:
+  // the KKT conditions hold on the original N x P matrix.
+  std::mt19937 gen(4);
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd a(400, 6);
+  for (Eigen::Index j = 0; j < a.cols(); ++j)
+    for (Eigen::Index t = 0; t < a.rows(); ++t) a(t, j) = normal(gen) + (j == 5 ? a(t, 4) : 0.0);
+  Eigen::VectorXd b(400);
+  for (Eigen::Index t = 0; t < b.size(); ++t) b(t) = normal(gen);
+  b -= 3.0 * a.col(1) - 2.0 * a.col(2);  // the data want k_1 < 0 and k_2 > 0
+  const Eigen::VectorXd lo = Eigen::VectorXd::Zero(6);
+  const Eigen::VectorXd hi = Eigen::VectorXd::Constant(6, std::numeric_limits<double>::infinity());
+  std::vector<int> at_bound;
+  const Eigen::VectorXd z = detail::box_least_squares(a, b, lo, hi, &at_bound);
+  const Eigen::VectorXd g = a.transpose() * (a * z - b);  // gradient / 2
+  EXPECT_EQ(at_bound[1], 1);
+  for (Eigen::Index j = 0; j < 6; ++j) {
+    EXPECT_GE(z(j), 0.0);
+    if (at_bound[static_cast<std::size_t>(j)]) EXPECT_GE(g(j), -1e-9 * b.norm()) << j;
+    else EXPECT_NEAR(g(j), 0.0, 1e-9 * b.norm()) << j;
   }
 }
 

@@ -27,11 +27,22 @@
 //    estimate_initial_deflections (initial_state.hpp) with the final parameters, the same routine
 //    validation uses.
 //  * Jacobian: exact Golub-Pereyra derivative of the projected residual (both terms, not Kaufman's
-//    approximation), built from d delta_i / d Delta_i and d delta_i / d delta_i(0), which one run
-//    of MaxwellSlip<ceres::Jet<double, 2>> gives (autodiff through the slip recursion).  The
-//    derivative is exact on the piece of the piecewise-smooth cost the point lies on; tests
-//    compare it with finite differences.
-//  * Local search: Ceres Levenberg-Marquardt with the box bounds.
+//    approximation), built from d delta_i / d Delta_i and d delta_i / d delta_i(0): the numbers
+//    one run of MaxwellSlip<ceres::Jet<double, 2>> gives (autodiff through the slip recursion),
+//    computed by that recursion written out per operator (a test checks them bit for bit against
+//    the Jet run).  The derivative is exact on the piece of the piecewise-smooth cost the point
+//    lies on; tests compare it with finite differences.
+//  * Local search: Ceres Levenberg-Marquardt with the box bounds.  A search that cannot reach the
+//    best minimum already known at this M, nor the (M-1)-operator minimum (which an M-operator
+//    model contains), within its remaining iterations at the pace of its last 10 is stopped
+//    (logged as such); the warm start runs first so that this target exists early.  Without the
+//    stop one start on data/estimation.csv spent all 100 iterations (40 % of the Jacobians of the
+//    whole identification) crawling along a valley to a minimum 75 % above the one the warm start
+//    had reached; the results (table, selected M, parameters) are unchanged by it.
+//  * Cost of an evaluation: NNLS on the QR-compressed P x P problem (one O(N M^2) factorisation,
+//    then O(M^3) active-set steps), the last point's trajectories, NNLS and projection kept so
+//    that Ceres' repeated requests at one point (line search, candidate, Jacobian) cost once, and
+//    storage reused between evaluations.
 //  * Starts (automatic, from the data): (a) "force-quantiles": Delta_j = u_j / 2 where u_j is the
 //    travel after the largest reversal at which the force has covered (j - 1/2)/M of its swing
 //    (2 Delta is the travel an operator needs to go from one bound to the other, so each
@@ -54,11 +65,15 @@
 //
 // Variable projection versus joint optimisation of (log k, s, rho), both with the same exact
 // Jacobian machinery (bench_identification, one run each, CPU time on a shared 2-core machine):
-//   M = 10, N = 10,000 (global stage on):  VP 2.4 s, RSS/SSS 0.0098 %  |  joint 5.3 s, 0.0148 %
+//   M = 10, N = 10,000 (global stage on):  VP 0.64 s, RSS/SSS 0.0098 %  |  joint 3.1 s, 0.0221 %
 //                                          (noise floor 0.0102 %)
-//   M = 4,  N = 3,000 (2 starts, no global): VP 83 ms, joint 29 ms, both 0.00451 % (floor 0.0050)
+//   M = 4,  N = 3,000 (2 starts, no global): VP 38 ms, joint 25 ms, both 0.00451 % (floor 0.0050)
 // Joint is faster when M is small, but VP reaches the lower minimum at the M the method is used
-// for, so VP is the default (`NlrSolver::Joint` stays available for comparison).
+// for, so VP is the default (`NlrSolver::Joint` stays available for comparison).  Before the
+// evaluation was made cheaper (QR-compressed NNLS, per-point reuse, the crawl stop) VP took 2.4 s
+// on the first case (the two starts then ended 0.0098 % and in a distinct minimum, so the global
+// stage also ran) and 83 ms on the second; `friction-identify compare` on data/estimation.csv
+// (M = 1..8, global stages) went from 3.7 to 1.4 s CPU with the same table and model.
 #pragma once
 
 #include <Eigen/Core>
