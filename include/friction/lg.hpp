@@ -13,11 +13,25 @@
 //    between reversals, with dir = sgn of its travel, g(t) = dir (F(t) - F(reversal)) rises by the
 //    swing S.  A segment *slides* when the force over the second half of its travel stays within
 //    25 % of S (a plateau; a presliding-only loop keeps rising, covering ~50 % there); its
-//    *sliding samples* are those past 1.5 times the travel at which g first reached 95 % of S.
+//    *sliding samples* are those past 1.5 times the travel at which g first reached 95 % of the
+//    breakaway B, the largest g over the first half of the travel (not of S: slowing into the
+//    next reversal, friction climbs the Stribeck curve again, and with S the transient of a fast
+//    stroke seemed to last to its end).  Sliding speeds are summarised by percentiles weighted
+//    by travel (each sample by its |dx|), so that a fast stroke counts as much as a slow one of
+//    the same length although it has fewer samples: `slowest` / `fastest_sliding_speed` are the
+//    5th / 95th.  The median of dir F over sliding samples must be positive (else the force
+//    pushes the motion: the record is in the other sign convention, and the message says so).
 //      * Fc, sigma2: a straight line dir F = Fc + sigma2 |v| fitted by least squares to the sliding
-//        samples in the upper third of the sliding speeds (where the Stribeck dip has died out);
-//        a negative slope (the dip not yet over) is set to 0 and Fc is then their median level.
-//        sigma2 <= 0 is replaced by 1 % of Fc / vmax (a positive start for a log parameter).
+//        samples in the upper third (by travel) of the sliding speeds (where the Stribeck dip has
+//        died out).  The line is used only when (a) the speeds of the fit vary by more than their
+//        noise (standard deviation > 2 q / Ts, q the displacement resolution, Ts the median
+//        sampling period; else the record slides at one speed, `one_speed`), (b) the slope
+//        exceeds twice its standard error and (c) the line meets v = 0 at a positive level.
+//        Otherwise (one speed, the Stribeck dip not yet over, viscous friction lost in the
+//        noise) Fc is the median level of those samples and sigma2 starts at 1 % of Fc / vmax (a
+//        positive start for a log parameter).  At one speed sigma2, Fs, vs and mu cannot be
+//        separated from Fc (a real single-speed tribometer record made sxx ~ 0 and the line's
+//        intercept -1.2e9 N): a warning says so, as it does whenever vmax < 3 vmin.
 //      * Fs observed: the larger of the level dir F - sigma2 |v| of the slowest 10 % of sliding
 //        samples and the median over sliding segments of their force peak (breakaway), at least
 //        1.01 Fc.  Both fall short of Fs when the record leaves presliding at speeds above vs.
@@ -128,11 +142,18 @@ struct LgStart {
   std::size_t segments = 0;          ///< segments between reversals
   std::size_t sliding_segments = 0;  ///< of which slide
   std::size_t sliding_samples = 0;
-  double slowest_sliding_speed = 0;  ///< 5th percentile of |v| over sliding samples [m/s]
-  double fastest_sliding_speed = 0;  ///< 95th percentile [m/s]
+  double slowest_sliding_speed = 0;  ///< 5th percentile of |v| by sliding travel [m/s]
+  double fastest_sliding_speed = 0;  ///< 95th percentile by sliding travel [m/s]
   double presliding_speed = 0;       ///< v_p [m/s]
+  double velocity_noise = 0;         ///< q / Ts, one velocity quantum [m/s]
+  /// The fastest third of the sliding speeds varies by no more than its noise (a single speed):
+  /// no slope of force on speed can be fitted.
+  bool one_speed = false;
+  /// sigma2 and Fc from the line of force on speed (else Fc the median level, sigma2 small).
+  bool viscous_from_slope = false;
   bool sigma0_from_sliding_reversals = false;
-  std::vector<bool> presliding;  ///< per sample: before g reached 95 % of its swing
+  std::vector<bool> presliding;       ///< per sample: before g reached 95 % of its breakaway
+  std::vector<std::string> warnings;  ///< what the record cannot tell (copied into the report)
 };
 
 /// Where the time went (wall-clock seconds) and how often the Jacobian was computed.
