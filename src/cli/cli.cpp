@@ -84,6 +84,7 @@ int run(int argc, char** argv) {
   const Action identify = register_identify(app);
   const Action validate = register_validate(app);
   const Action compare = register_compare(app);
+  const Action diagnose = register_diagnose(app);
 
   try {
     app.parse(argc, argv);
@@ -102,6 +103,7 @@ int run(int argc, char** argv) {
       if (name == "identify") return identify();
       if (name == "validate") return validate();
       if (name == "compare") return compare();
+      if (name == "diagnose") return diagnose();
     }
     return kExitUsage;
   } catch (const OptionError& e) {

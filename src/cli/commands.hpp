@@ -18,6 +18,7 @@ Action register_simulate(CLI::App& root);
 Action register_identify(CLI::App& root);
 Action register_validate(CLI::App& root);
 Action register_compare(CLI::App& root);
+Action register_diagnose(CLI::App& root);
 
 /// Adds --columns, --units and --force-sign to a subcommand.
 void add_input_options(CLI::App& command, InputOptions& in);

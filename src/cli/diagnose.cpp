@@ -1,0 +1,177 @@
+// `diagnose`: fit a baseline, show what its simulation gets wrong on the validation record, name
+// the causes, extend the model and measure the gain (cli.md; the method is in diagnose.hpp).
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+#include "commands.hpp"
+#include "friction/atomic_file.hpp"
+#include "friction/diagnose.hpp"
+#include "progress.hpp"
+
+namespace friction::cli {
+
+namespace {
+
+struct DiagnoseCliOptions {
+  std::string data, validate, baseline = "maxwell-slip", svg;
+  double holdout = 0.3;
+  std::size_t max_operators = 0;
+  bool no_global = false;
+  unsigned seed = 1;
+  InputOptions input;
+  OutputOptions output;
+};
+
+std::string num(double v, int precision = 4) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+  return buf;
+}
+
+// Residual of the baseline and of the final model against velocity on the validation record: two
+// scatter plots side by side (SVG, no dependencies).
+std::string residual_svg(const Record& val, const std::vector<double>& before,
+                         const std::vector<double>& after, double before_pct, double after_pct) {
+  const std::size_t n = val.size();
+  std::vector<double> v(n, 0.0);
+  for (std::size_t k = 1; k < n; ++k)
+    v[k] = (val.displacement[k] - val.displacement[k - 1]) / (val.time[k] - val.time[k - 1]);
+  double vmax = 1e-300, emax = 1e-300;
+  for (std::size_t k = 0; k < n; ++k) {
+    vmax = std::max(vmax, std::abs(v[k]));
+    emax = std::max({emax, std::abs(val.force[k] - before[k]), std::abs(val.force[k] - after[k])});
+  }
+  const double w = 420, h = 300, pad = 40;
+  std::ostringstream s;
+  s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << 2 * w << "\" height=\"" << h
+    << "\" font-family=\"sans-serif\" font-size=\"11\">\n";
+  const std::size_t stride = std::max<std::size_t>(1, n / 3000);
+  for (int panel = 0; panel < 2; ++panel) {
+    const auto& sim = panel == 0 ? before : after;
+    const double ox = panel * w;
+    s << "<rect x=\"" << ox + pad << "\" y=\"" << pad / 2 << "\" width=\"" << w - 1.5 * pad
+      << "\" height=\"" << h - 1.5 * pad << "\" fill=\"none\" stroke=\"#888\"/>\n";
+    s << "<text x=\"" << ox + pad << "\" y=\"" << pad / 2 - 6 << "\">"
+      << (panel == 0 ? "baseline" : "final") << " residual [N] vs velocity [m/s], RSS/SSS "
+      << num(panel == 0 ? before_pct : after_pct, 3) << " %</text>\n";
+    s << "<text x=\"" << ox + pad << "\" y=\"" << h - 4 << "\">|v| max " << num(vmax, 3)
+      << " m/s, |e| max " << num(emax, 3) << " N</text>\n";
+    const double cx = ox + pad + (w - 1.5 * pad) / 2, cy = pad / 2 + (h - 1.5 * pad) / 2;
+    s << "<line x1=\"" << ox + pad << "\" y1=\"" << cy << "\" x2=\"" << ox + w - pad / 2
+      << "\" y2=\"" << cy << "\" stroke=\"#ccc\"/>\n";
+    for (std::size_t k = 0; k < n; k += stride) {
+      const double px = cx + v[k] / vmax * (w - 1.5 * pad) / 2;
+      const double py = cy - (val.force[k] - sim[k]) / emax * (h - 1.5 * pad) / 2;
+      s << "<circle cx=\"" << num(px, 6) << "\" cy=\"" << num(py, 6)
+        << "\" r=\"1\" fill=\"#1f77b4\" fill-opacity=\"0.5\"/>\n";
+    }
+  }
+  s << "</svg>\n";
+  return s.str();
+}
+
+int run_diagnose(const DiagnoseCliOptions& o) {
+  Record all = load_record(o.data, o.input, /*require_force=*/true);
+  std::vector<std::string> warnings = all.conditioning.warnings;
+  Record est, val;
+  if (!o.validate.empty()) {
+    est = std::move(all);
+    val = load_record(o.validate, o.input, true);
+    for (const auto& w : val.conditioning.warnings) warnings.push_back(o.validate + ": " + w);
+  } else {
+    if (!(o.holdout > 0 && o.holdout < 1))
+      throw OptionError("--holdout must lie strictly between 0 and 1");
+    const std::size_t n = all.size();
+    const auto n_est =
+        static_cast<std::size_t>(std::llround((1.0 - o.holdout) * static_cast<double>(n)));
+    if (n_est < 2 * kMinSamples || n - n_est < kMinSamples)
+      throw DataError(o.data, 0, 0, "too few samples to hold out for validation; give --validate");
+    est = all.slice(0, n_est);
+    val = all.slice(n_est, n);
+    warnings.push_back("no --validate given: the last " + num(100 * o.holdout, 3) + " % of " +
+                       o.data + " (from t = " + num(val.time.front(), 6) +
+                       " s) is held out for validation");
+  }
+  DiagnoseOptions opt;
+  opt.baseline = check_model_type(o.baseline);
+  opt.method.max_operators = o.max_operators;
+  opt.method.global_stage = !o.no_global;
+  opt.method.seed = o.seed;
+  Progress progress;
+  progress.update("diagnose: fitting the " + opt.baseline + " baseline and its extensions ...");
+  const Diagnosis d = diagnose(est, val, opt);
+  progress.done();
+
+  Json doc = new_document("diagnose");
+  add_warnings(doc, warnings);
+  add_warnings(doc, d.warnings);
+  Json body = d.to_json();
+  for (auto it = body.begin(); it != body.end(); ++it) doc[it.key()] = it.value();
+  doc["data"] = {{"estimation", {{"file", o.data}, {"samples", est.size()}}},
+                 {"validation",
+                  {{"file", o.validate.empty() ? o.data : o.validate},
+                   {"samples", val.size()},
+                   {"held_out", o.validate.empty()}}}};
+
+  if (!o.svg.empty()) {
+    // Both free runs from the initial state estimated on the validation record.
+    std::vector<double> before, after;
+    if (d.baseline_model && d.baseline_model->type() == "maxwell-slip" && d.final_model &&
+        d.final_model->type() == "maxwell-slip") {
+      const auto& b = std::get<Extended<MaxwellSlip<double>>>(d.baseline_model->variant());
+      const auto& f = std::get<Extended<MaxwellSlip<double>>>(d.final_model->variant());
+      extended_validation_percent(b.base().parameters(), b.extensions(), val, &before);
+      extended_validation_percent(f.base().parameters(), f.extensions(), val, &after);
+      write_file_atomically(o.svg, residual_svg(val, before, after, d.baseline_validation_percent,
+                                                d.final_validation_percent));
+    } else {
+      add_warnings(doc, {"--svg: the plot needs a maxwell-slip baseline; not written"});
+    }
+  }
+
+  if (o.output.format == "json") {
+    emit(o.output, doc.dump(2) + "\n");
+    return kExitOk;
+  }
+  std::ostringstream os;
+  os << "diagnose: estimation " << o.data << " (" << est.size() << " samples), validation "
+     << (o.validate.empty() ? "held out" : o.validate) << " (" << val.size() << " samples), "
+     << num(d.seconds, 3) << " s\n"
+     << d.to_table();
+  if (!doc["warnings"].empty()) os << doc["warnings"].size() << " warning(s), on stderr\n";
+  if (!o.output.out.empty()) {
+    std::cout << os.str();
+    emit(o.output, doc.dump(2) + "\n");
+  } else {
+    emit(o.output, os.str());
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+Action register_diagnose(CLI::App& root) {
+  auto o = std::make_shared<DiagnoseCliOptions>();
+  CLI::App* c = root.add_subcommand(
+      "diagnose",
+      "Fit a baseline on --data, show what its simulation gets wrong on --validate, "
+      "name the causes, extend the model and measure the gain");
+  c->add_option("--data", o->data, "Estimation record (CSV)")->required();
+  c->add_option("--validate", o->validate, "Validation record (CSV)");
+  c->add_option("--holdout", o->holdout,
+                "Without --validate: fraction of --data held out at its end for validation")
+      ->capture_default_str();
+  c->add_option("--baseline", o->baseline, "Baseline model: maxwell-slip (NLR) or lugre (LG)")
+      ->capture_default_str();
+  c->add_option("--max-operators", o->max_operators, "NLR: largest M tried by the order selection");
+  c->add_flag("--no-global", o->no_global, "Skip the NLopt global stages (faster, less robust)");
+  c->add_option("--seed", o->seed, "Seed of the global stages")->capture_default_str();
+  c->add_option("--svg", o->svg, "Write a plot of the residual against velocity (before/after)");
+  add_input_options(*c, o->input);
+  add_output_options(*c, o->output);
+  return [o] { return run_diagnose(*o); };
+}
+
+}  // namespace friction::cli

@@ -1,0 +1,1285 @@
+// Diagnosis of a baseline's residual and greedy extension (see diagnose.hpp for the method).
+#include "friction/diagnose.hpp"
+
+#include <ceres/ceres.h>
+#include <ceres/dynamic_autodiff_cost_function.h>
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+#include <sstream>
+
+#include "friction/identification.hpp"
+#include "friction/initial_state.hpp"
+#include "friction/metrics.hpp"
+
+namespace friction {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// ---------------------------------------------------------------------------------------------
+// Small helpers.
+
+double sum_sq(const std::vector<double>& v) {
+  double s = 0;
+  for (double e : v) s += e * e;
+  return s;
+}
+
+double percent(const std::vector<double>& force, double rss) {
+  return 100.0 * rss / sum_sq(force);
+}
+
+double bic(double rss, std::size_t n, std::size_t p) {
+  return bayesian_information_criterion(rss, n, p);
+}
+
+// 99.9 % quantile of chi-square with p degrees of freedom: what p parameters fitted to white
+// noise of unit variance buy, with a margin for the tail.
+double chi2_999(std::size_t p) {
+  static const double table[] = {10.83, 13.82, 16.27, 18.47, 20.52, 22.46, 24.32, 26.12};
+  if (p == 0) return 0.0;
+  if (p <= 8) return table[p - 1];
+  return 26.12 + 1.8 * static_cast<double>(p - 8);
+}
+
+std::string fmt(double v, int precision = 3) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+  return buf;
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const auto k =
+      static_cast<std::size_t>(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+// ---------------------------------------------------------------------------------------------
+// Free run of an extended Maxwell Slip model in double, with the regime of every sample.  The
+// context is built exactly as simulate_extended builds it (tests compare the two).
+
+struct Run {
+  std::vector<double> force;
+  std::vector<char> sliding;
+  std::vector<double> velocity, acceleration;  // of the (shifted) record
+};
+
+Run run_extended(const MaxwellSlipParameters<double>& base, const ExtensionParameters<double>& ext,
+                 std::span<const double> initial, const Record& r) {
+  const std::size_t n = r.size();
+  Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(base), ext, 2);
+  model.base().reset(initial);
+  std::vector<double> xs(r.displacement);
+  const auto& time = r.time;
+  if (ext.delay && ext.delay->delay != 0.0) {
+    std::size_t j = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      const double tv = time[k] - ext.delay->delay;
+      if (tv <= time.front()) {
+        xs[k] = r.displacement.front();
+      } else if (tv >= time.back()) {
+        xs[k] = r.displacement.back();
+      } else {
+        while (j + 1 < n && time[j + 1] <= tv) ++j;
+        const double w = (tv - time[j]) / (time[j + 1] - time[j]);
+        xs[k] = r.displacement[j] + (r.displacement[j + 1] - r.displacement[j]) * w;
+      }
+    }
+  }
+  Run out;
+  out.velocity.assign(n, 0.0);
+  out.acceleration.assign(n, 0.0);
+  for (std::size_t k = 1; k < n; ++k)
+    out.velocity[k] = (xs[k] - xs[k - 1]) / (time[k] - time[k - 1]);
+  if (n >= 3) {
+    for (std::size_t k = 1; k + 1 < n; ++k)
+      out.acceleration[k] =
+          (out.velocity[k + 1] - out.velocity[k]) / (0.5 * (time[k + 1] - time[k - 1]));
+    out.acceleration[0] = out.acceleration[1];
+    out.acceleration[n - 1] = out.acceleration[n - 2];
+  }
+  out.force.resize(n);
+  out.sliding.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    ExtendedMotion<double> c;
+    c.x = xs[k];
+    c.dx = k > 0 ? xs[k] - xs[k - 1] : 0.0;
+    c.velocity = out.velocity[k];
+    c.acceleration = out.acceleration[k];
+    c.dt = k > 0 ? time[k] - time[k - 1] : 0.0;
+    c.time = time[k] - time.front();
+    if (r.has_normal()) {
+      c.normal = r.normal[k];
+      c.has_normal = true;
+    }
+    out.force[k] = model.step_shifted(c);
+    out.sliding[k] = model.base().sliding(model.level()) ? 1 : 0;
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The cost: residuals of the extended model's free run, parameters in two blocks:
+//   theta = [log k (M), log Delta (M), extension parameters in for_each_parameter order]
+//   rho   = relative initial deflections (M), in [-1, 1]
+// The extension template fixes which pieces are on and the reference force F0.
+
+struct ExtendedCost {
+  const Record* record;
+  std::size_t operators;
+  ExtensionParameters<double> pieces;
+  double scale;  // 1 / rms(F)
+
+  template <typename T>
+  bool operator()(T const* const* p, T* residual) const {
+    using std::exp;
+    const std::size_t m = operators;
+    MaxwellSlipParameters<T> mp;
+    mp.stiffness.resize(m);
+    mp.threshold.resize(m);
+    for (std::size_t i = 0; i < m; ++i) {
+      mp.stiffness[i] = exp(p[0][i]);
+      mp.threshold[i] = exp(p[0][m + i]);
+    }
+    ExtensionParameters<T> ext = pieces.template cast<T>([](double v) { return T(v); });
+    std::size_t j = 2 * m;
+    ext.for_each_parameter([&](Effect, std::string_view, T& v) { v = p[0][j++]; });
+    ext.reference_force = T(pieces.reference_force);
+    try {
+      Extended<MaxwellSlip<T>> model(MaxwellSlip<T>(std::move(mp)), std::move(ext), 2);
+      std::vector<T> d(m);
+      for (std::size_t i = 0; i < m; ++i) d[i] = p[1][i] * exp(p[0][m + i]);
+      model.base().reset(std::span<const T>(d));
+      const Record& r = *record;
+      const std::size_t n = r.size();
+      // Reused between evaluations (per thread and scalar type): no allocation per evaluation.
+      thread_local std::vector<T> x, f;
+      x.resize(n);
+      f.resize(n);
+      for (std::size_t k = 0; k < n; ++k) x[k] = T(r.displacement[k]);
+      simulate_extended(model, std::span<const double>(r.time), std::span<const T>(x),
+                        std::span<const double>(r.normal), std::span<T>(f));
+      for (std::size_t k = 0; k < n; ++k) residual[k] = (T(r.force[k]) - f[k]) * scale;
+    } catch (const InvalidParameter&) {
+      return false;  // outside the domain: Ceres rejects the step
+    }
+    return true;
+  }
+};
+
+struct Bounds {
+  double lower, upper;
+};
+
+// Box of each extension parameter during the fit (F0 the reference force, T the duration).
+Bounds parameter_bounds(Effect e, std::string_view name, double f0, double duration, double vmax) {
+  const double inf = std::numeric_limits<double>::infinity();
+  switch (e) {
+    case Effect::viscous:
+      return {0.0, inf};
+    case Effect::stribeck:
+      if (name == "static") return {0.05 * f0, 20.0 * f0};
+      if (name == "stribeck_velocity") return {1e-6 * vmax, 10.0 * vmax};
+      return {0.3, 5.0};
+    case Effect::frictional_lag:
+      return {0.0, duration / 4};
+    case Effect::asymmetry:
+      return {-0.9, 0.9};
+    case Effect::offset:
+      return {-inf, inf};
+    case Effect::inertia:
+      return {0.0, inf};
+    case Effect::position_dependence:
+      if (name == "amplitude") return {-0.9 * f0, 0.9 * f0};
+      if (name == "wavelength") return {1e-12, inf};
+      return {-inf, inf};
+    case Effect::drift:
+      return {-0.9 / duration, 5.0 / duration};
+    case Effect::delay:
+      return {-duration / 10, duration / 10};
+    case Effect::normal_load:
+      return {1e-12, inf};
+  }
+  return {-inf, inf};
+}
+
+struct Fit {
+  MaxwellSlipParameters<double> base;
+  std::vector<double> rho;
+  ExtensionParameters<double> ext;
+  double rss = 0;
+  bool ok = false;
+};
+
+// Fits theta (and rho) from the given start; `fix_theta` estimates the initial state only.
+Fit fit_extended(const Record& r, const MaxwellSlipParameters<double>& base0,
+                 const std::vector<double>& rho0, const ExtensionParameters<double>& ext0,
+                 bool fix_theta, int max_iterations) {
+  const std::size_t m = base0.size();
+  std::vector<double> theta;
+  for (std::size_t i = 0; i < m; ++i) theta.push_back(std::log(base0.stiffness[i]));
+  for (std::size_t i = 0; i < m; ++i) theta.push_back(std::log(base0.threshold[i]));
+  std::vector<std::pair<Effect, std::string>> names;
+  ext0.for_each_parameter([&](Effect e, std::string_view name, const double& v) {
+    theta.push_back(v);
+    names.emplace_back(e, std::string(name));
+  });
+  std::vector<double> rho(rho0);
+  rho.resize(m, 0.0);
+  for (double& v : rho) v = std::clamp(v, -1.0, 1.0);
+
+  double rms = std::sqrt(sum_sq(r.force) / static_cast<double>(r.size()));
+  auto* functor = new ExtendedCost{&r, m, ext0, rms > 0 ? 1.0 / rms : 1.0};
+  auto* cost = new ceres::DynamicAutoDiffCostFunction<ExtendedCost, 16>(functor);
+  cost->AddParameterBlock(static_cast<int>(theta.size()));
+  cost->AddParameterBlock(static_cast<int>(m));
+  cost->SetNumResiduals(static_cast<int>(r.size()));
+  ceres::Problem problem;
+  problem.AddResidualBlock(cost, nullptr, theta.data(), rho.data());
+  for (std::size_t i = 0; i < m; ++i) {
+    problem.SetParameterLowerBound(rho.data(), static_cast<int>(i), -1.0);
+    problem.SetParameterUpperBound(rho.data(), static_cast<int>(i), 1.0);
+  }
+  const double duration = std::max(r.time.back() - r.time.front(), 1e-12);
+  double vmax = 0;
+  for (std::size_t k = 1; k < r.size(); ++k)
+    vmax = std::max(
+        vmax, std::abs(r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]));
+  const double f0 = ext0.reference_force > 0 ? ext0.reference_force : base0.sliding_force();
+  for (std::size_t j = 0; j < names.size(); ++j) {
+    const Bounds b =
+        parameter_bounds(names[j].first, names[j].second, f0, duration, std::max(vmax, 1e-12));
+    double& v = theta[2 * m + j];
+    v = std::clamp(v, b.lower, b.upper);
+    if (std::isfinite(b.lower))
+      problem.SetParameterLowerBound(theta.data(), static_cast<int>(2 * m + j), b.lower);
+    if (std::isfinite(b.upper))
+      problem.SetParameterUpperBound(theta.data(), static_cast<int>(2 * m + j), b.upper);
+  }
+  // Thresholds inside [q, L] as NLR keeps them (nlr.hpp): an operator beyond the travel with a
+  // large initial deflection would otherwise act as a free offset.
+  {
+    const double q = displacement_resolution(r.displacement);
+    const double big = std::max(largest_travel(r.displacement), q * 1.0001);
+    for (std::size_t i = 0; i < m; ++i) {
+      double& v = theta[m + i];
+      const double lo = std::log(std::min(q, base0.threshold[i]));
+      const double hi = std::log(std::max(big, base0.threshold[i]));
+      v = std::clamp(v, lo, hi);
+      problem.SetParameterLowerBound(theta.data(), static_cast<int>(m + i), lo);
+      problem.SetParameterUpperBound(theta.data(), static_cast<int>(m + i), hi);
+    }
+  }
+  if (fix_theta) problem.SetParameterBlockConstant(theta.data());
+
+  ceres::Solver::Options options;
+  options.minimizer_type = ceres::TRUST_REGION;
+  options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  options.linear_solver_type = ceres::DENSE_QR;
+  options.max_num_iterations = max_iterations;
+  options.num_threads = 1;
+  options.logging_type = ceres::SILENT;
+  options.minimizer_progress_to_stdout = false;
+  // A relative cost change of 1e-7 is 1e-3 BIC units at N = 1e4: far below any decision here.
+  options.function_tolerance = 1e-7;
+  options.parameter_tolerance = 1e-9;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+
+  Fit out;
+  out.base.stiffness.resize(m);
+  out.base.threshold.resize(m);
+  for (std::size_t i = 0; i < m; ++i) {
+    out.base.stiffness[i] = std::exp(theta[i]);
+    out.base.threshold[i] = std::exp(theta[m + i]);
+  }
+  out.ext = ext0;
+  std::size_t j = 2 * m;
+  out.ext.for_each_parameter([&](Effect, std::string_view, double& v) { v = theta[j++]; });
+  out.rho = rho;
+  out.ok = summary.IsSolutionUsable();
+  out.rss = out.ok ? 2.0 * summary.final_cost * rms * rms : std::numeric_limits<double>::infinity();
+  return out;
+}
+
+std::vector<double> deflections(const MaxwellSlipParameters<double>& base,
+                                const std::vector<double>& rho) {
+  std::vector<double> d(base.size());
+  for (std::size_t i = 0; i < base.size(); ++i) d[i] = rho[i] * base.threshold[i];
+  return d;
+}
+
+// Initial state estimated from the record for fixed parameters: the plain Maxwell Slip estimate as
+// a start, refined through the extended model.
+std::vector<double> estimate_rho(const MaxwellSlipParameters<double>& base,
+                                 const ExtensionParameters<double>& ext, const Record& r,
+                                 double* rss) {
+  std::vector<double> d = estimate_initial_deflections(base, r.displacement, r.force);
+  std::vector<double> rho(base.size());
+  for (std::size_t i = 0; i < base.size(); ++i) rho[i] = d[i] / base.threshold[i];
+  Fit f = fit_extended(r, base, rho, ext, /*fix_theta=*/true, 30);
+  // Guard: the refinement never makes it worse than its start.
+  const Run start = run_extended(base, ext, deflections(base, rho), r);
+  double rss0 = 0;
+  for (std::size_t k = 0; k < r.size(); ++k)
+    rss0 += (r.force[k] - start.force[k]) * (r.force[k] - start.force[k]);
+  if (!f.ok || f.rss > rss0) {
+    if (rss) *rss = rss0;
+    return rho;
+  }
+  if (rss) *rss = f.rss;
+  return f.rho;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Evidence: least-squares share of the residual explained by an effect's regressors beyond the
+// nuisance regressors (a Coulomb level change the threshold refit absorbs anyway).
+
+struct Explained {
+  double share = 0;
+  Eigen::VectorXd coefficients;  // of the effect's regressors
+};
+
+Explained explain(const std::vector<double>& e, const std::vector<std::vector<double>>& nuisance,
+                  const std::vector<std::vector<double>>& effect) {
+  const std::size_t n = e.size();
+  const std::size_t q = nuisance.size(), p = effect.size();
+  Eigen::MatrixXd a(n, q + p);
+  Eigen::VectorXd b(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    b[static_cast<Eigen::Index>(k)] = e[k];
+    for (std::size_t j = 0; j < q; ++j)
+      a(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(j)) = nuisance[j][k];
+    for (std::size_t j = 0; j < p; ++j)
+      a(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(q + j)) = effect[j][k];
+  }
+  const double total = b.squaredNorm();
+  Explained out;
+  out.coefficients = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p));
+  if (total <= 0) return out;
+  auto rss_of = [&](const Eigen::MatrixXd& m, Eigen::VectorXd* coef) {
+    if (m.cols() == 0) return total;
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(m);
+    const Eigen::VectorXd c = qr.solve(b);
+    if (coef) *coef = c;
+    return (b - m * c).squaredNorm();
+  };
+  const double r0 = rss_of(a.leftCols(static_cast<Eigen::Index>(q)), nullptr);
+  Eigen::VectorXd c;
+  const double r1 = rss_of(a, &c);
+  out.share = std::max(0.0, (r0 - r1) / total);
+  out.coefficients = c.tail(static_cast<Eigen::Index>(p));
+  return out;
+}
+
+struct Signals {
+  std::vector<double> e, fhat, v, a, x, t, sliding, dir;
+  double f0 = 0;
+};
+
+ResidualEvidence evidence_of(const MaxwellSlipParameters<double>& base,
+                             const ExtensionParameters<double>& ext, const Record& r,
+                             const std::vector<double>& rho, Signals* signals_out) {
+  const std::size_t n = r.size();
+  const Run run = run_extended(base, ext, deflections(base, rho), r);
+  Signals s;
+  s.f0 = ext.reference_force > 0 ? ext.reference_force : base.sliding_force();
+  s.e.resize(n);
+  s.fhat = run.force;
+  s.v = run.velocity;
+  s.a = run.acceleration;
+  s.x = r.displacement;
+  s.t.resize(n);
+  s.sliding.resize(n);
+  s.dir.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    s.e[k] = r.force[k] - run.force[k];
+    s.t[k] = r.time[k] - r.time.front();
+    s.sliding[k] = run.sliding[k] ? 1.0 : 0.0;
+    s.dir[k] = run.sliding[k] ? (run.force[k] >= 0 ? 1.0 : -1.0) : 0.0;
+  }
+  ResidualEvidence ev;
+  ev.rss_sss_percent = percent(r.force, sum_sq(s.e));
+  ev.noise_sigma = estimate_white_noise_sigma(r.force);
+  ev.noise_floor_percent = noise_floor_rss_sss_percent(r.force, ev.noise_sigma);
+  double ss_s = 0, ss_p = 0, m_s = 0, m_p = 0;
+  std::vector<double> speeds;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (s.sliding[k] > 0) {
+      ++ev.sliding_samples;
+      ss_s += s.e[k] * s.e[k];
+      m_s += s.e[k];
+      speeds.push_back(std::abs(s.v[k]));
+    } else {
+      ++ev.presliding_samples;
+      ss_p += s.e[k] * s.e[k];
+      m_p += s.e[k];
+    }
+  }
+  if (ev.sliding_samples) {
+    ev.sliding_rms = std::sqrt(ss_s / static_cast<double>(ev.sliding_samples));
+    ev.sliding_mean = m_s / static_cast<double>(ev.sliding_samples);
+    ev.sliding_speed_min = quantile(speeds, 0.05);
+    ev.sliding_speed_max = quantile(speeds, 0.95);
+  }
+  if (ev.presliding_samples) {
+    ev.presliding_rms = std::sqrt(ss_p / static_cast<double>(ev.presliding_samples));
+    ev.presliding_mean = m_p / static_cast<double>(ev.presliding_samples);
+  }
+  // Velocity bins: sliding samples, quantile bins of |v| per direction.
+  for (int d : {1, -1}) {
+    std::vector<std::pair<double, double>> pts;
+    for (std::size_t k = 0; k < n; ++k)
+      if (s.sliding[k] > 0 && s.dir[k] == d) pts.emplace_back(std::abs(s.v[k]), s.e[k]);
+    if (pts.size() < 16) continue;
+    std::sort(pts.begin(), pts.end());
+    const std::size_t bins = 6;
+    for (std::size_t b = 0; b < bins; ++b) {
+      const std::size_t lo = b * pts.size() / bins, hi = (b + 1) * pts.size() / bins;
+      ResidualEvidence::Bin bin;
+      bin.direction = d;
+      bin.speed_low = pts[lo].first;
+      bin.speed_high = pts[hi - 1].first;
+      for (std::size_t k = lo; k < hi; ++k) bin.mean_residual += pts[k].second;
+      bin.samples = hi - lo;
+      bin.mean_residual /= static_cast<double>(bin.samples);
+      ev.velocity_bins.push_back(bin);
+    }
+  }
+  // Cross-correlation of e with the displacement increments, and the best shift of Fhat.
+  const double ts = n > 1 ? (r.time.back() - r.time.front()) / static_cast<double>(n - 1) : 1.0;
+  const long lmax = static_cast<long>(std::min<std::size_t>(40, n / 20));
+  {
+    std::vector<double> dx(n, 0.0);
+    for (std::size_t k = 1; k < n; ++k) dx[k] = r.displacement[k] - r.displacement[k - 1];
+    const double se = std::sqrt(sum_sq(s.e)), sd = std::sqrt(sum_sq(dx));
+    double best_rss = std::numeric_limits<double>::infinity();
+    long best = 0;
+    std::vector<double> shift_rss;
+    for (long lag = -lmax; lag <= lmax; ++lag) {
+      double c = 0, rs = 0;
+      for (long k = lmax; k < static_cast<long>(n) - lmax; ++k) {
+        c += s.e[static_cast<std::size_t>(k)] * dx[static_cast<std::size_t>(k - lag)];
+        const double g =
+            r.force[static_cast<std::size_t>(k)] - s.fhat[static_cast<std::size_t>(k - lag)];
+        rs += g * g;
+      }
+      ev.xcorr_lags.push_back(static_cast<double>(lag) * ts);
+      ev.xcorr_values.push_back(se > 0 && sd > 0 ? c / (se * sd) : 0.0);
+      shift_rss.push_back(rs);
+      if (rs < best_rss) best_rss = rs, best = lag;
+    }
+    // Parabolic refinement of the best shift.
+    double frac = 0;
+    const std::size_t bi = static_cast<std::size_t>(best + lmax);
+    if (bi > 0 && bi + 1 < shift_rss.size()) {
+      const double y0 = shift_rss[bi - 1], y1 = shift_rss[bi], y2 = shift_rss[bi + 1];
+      const double den = y0 - 2 * y1 + y2;
+      if (den > 0) frac = std::clamp(0.5 * (y0 - y2) / den, -0.5, 0.5);
+    }
+    ev.best_shift = (static_cast<double>(best) + frac) * ts;
+  }
+
+  // Effect signatures.
+  const std::vector<double> ones(n, 1.0);
+  std::vector<double> dir_s(n), v_s(n), a_s(n), dfhat(n, 0.0), asym(n), drift(n), a_all(s.a);
+  for (std::size_t k = 0; k < n; ++k) {
+    dir_s[k] = s.dir[k];
+    v_s[k] = s.sliding[k] * s.v[k];
+    a_s[k] = s.sliding[k] * s.a[k];
+    asym[k] = s.f0 > 0 ? s.fhat[k] * s.fhat[k] / s.f0 : 0.0;
+    drift[k] = s.dir[k] * s.f0 * s.t[k];
+  }
+  for (std::size_t k = 1; k + 1 < n; ++k)
+    dfhat[k] = (s.fhat[k + 1] - s.fhat[k - 1]) / (r.time[k + 1] - r.time[k - 1]);
+  auto add = [&](Effect eff, const Explained& x, double coef, std::string detail) {
+    ev.effects.push_back({eff, x.share, coef, std::move(detail)});
+  };
+  {
+    auto x = explain(s.e, {}, {ones});
+    add(Effect::offset, x, x.coefficients[0], "");
+  }
+  {
+    auto x = explain(s.e, {dir_s}, {v_s});
+    add(Effect::viscous, x, x.coefficients[0], "");
+  }
+  {
+    auto x = explain(s.e, {ones}, {asym});
+    add(Effect::asymmetry, x, x.coefficients[0], "");
+  }
+  {
+    auto x = explain(s.e, {}, {a_all});
+    add(Effect::inertia, x, x.coefficients[0], "");
+  }
+  {
+    auto x = explain(s.e, {dir_s}, {drift});
+    add(Effect::drift, x, x.coefficients[0], "");
+  }
+  {
+    auto x = explain(s.e, {}, {dfhat});
+    add(Effect::delay, x, ev.best_shift, "shift " + fmt(ev.best_shift) + " s");
+  }
+  {
+    auto x = explain(s.e, {dir_s, v_s}, {a_s});
+    add(Effect::frictional_lag, x, x.coefficients[0], "");
+  }
+  if (!speeds.empty()) {  // Stribeck: grid over vs between the sliding speeds' quantiles
+    Explained best;
+    double best_vs = 0;
+    for (double qv : {0.02, 0.1, 0.25, 0.5, 0.75}) {
+      const double vs = std::max(quantile(speeds, qv), 1e-12);
+      std::vector<double> g(n);
+      for (std::size_t k = 0; k < n; ++k)
+        g[k] = s.dir[k] * std::exp(-(s.v[k] / vs) * (s.v[k] / vs));
+      auto x = explain(s.e, {dir_s}, {g});
+      if (x.share > best.share || best_vs == 0) best = x, best_vs = vs;
+    }
+    add(Effect::stribeck, best, best.coefficients.size() ? best.coefficients[0] : 0.0,
+        fmt(best_vs, 6));
+  }
+  {  // Position: grid over wavelengths spanning the travel.
+    const double travel = 2.0 * largest_travel(r.displacement);
+    Explained best;
+    double best_lambda = 0;
+    if (travel > 0) {
+      for (int g = 0; g < 28; ++g) {
+        const double lambda = travel / 10.0 * std::pow(40.0, g / 27.0);
+        std::vector<double> c1(n), c2(n);
+        for (std::size_t k = 0; k < n; ++k) {
+          c1[k] = s.dir[k] * std::sin(2 * kPi * s.x[k] / lambda);
+          c2[k] = s.dir[k] * std::cos(2 * kPi * s.x[k] / lambda);
+        }
+        auto x = explain(s.e, {dir_s}, {c1, c2});
+        if (x.share > best.share || best_lambda == 0) best = x, best_lambda = lambda;
+      }
+    }
+    const double amp = best.coefficients.size() == 2
+                           ? std::hypot(best.coefficients[0], best.coefficients[1])
+                           : 0.0;
+    const double phase = best.coefficients.size() == 2
+                             ? std::atan2(best.coefficients[1], best.coefficients[0])
+                             : 0.0;
+    EffectEvidence pe{Effect::position_dependence, best.share, amp,
+                      fmt(best_lambda, 6) + " " + fmt(phase, 6)};
+    ev.effects.push_back(pe);
+  }
+  if (r.has_normal()) {
+    std::vector<double> dn(n);
+    for (std::size_t k = 0; k < n; ++k) dn[k] = s.dir[k] * r.normal[k];
+    auto x = explain(s.e, {dir_s}, {dn});
+    add(Effect::normal_load, x, x.coefficients[0], "");
+  }
+  std::stable_sort(
+      ev.effects.begin(), ev.effects.end(),
+      [](const EffectEvidence& a, const EffectEvidence& b) { return a.explained > b.explained; });
+  if (signals_out) *signals_out = std::move(s);
+  return ev;
+}
+
+const EffectEvidence* find_evidence(const ResidualEvidence& ev, Effect e) {
+  for (const auto& x : ev.effects)
+    if (x.effect == e) return &x;
+  return nullptr;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Candidates.
+
+struct State {
+  MaxwellSlipParameters<double> base;
+  std::vector<double> rho;
+  ExtensionParameters<double> ext;  // reference_force = F0ref
+  double rss = 0;
+  double validation = 0;      // RSS/SSS %
+  std::vector<Effect> order;  // accepted, in order
+};
+
+std::size_t extra_parameters(const ExtensionParameters<double>& with,
+                             const ExtensionParameters<double>& without) {
+  return with.parameter_count() - without.parameter_count();
+}
+
+// The current pieces plus the candidate's, with a data-driven start.
+ExtensionParameters<double> candidate_start(Effect e, const ExtensionParameters<double>& current,
+                                            const ResidualEvidence& ev, const Record& r,
+                                            double f0) {
+  ExtensionParameters<double> x = current;
+  const EffectEvidence* w = find_evidence(ev, e);
+  const double coef = w ? w->coefficient : 0.0;
+  const double duration = std::max(r.time.back() - r.time.front(), 1e-12);
+  x.enable(e);
+  switch (e) {
+    case Effect::viscous:
+      x.viscous->viscous = std::max(coef, 0.0);
+      break;
+    case Effect::offset:
+      x.offset->offset = coef;
+      break;
+    case Effect::inertia:
+      x.inertia->mass = std::max(coef, 0.0);
+      break;
+    case Effect::asymmetry:
+      x.asymmetry->asymmetry = std::clamp(coef, -0.8, 0.8);
+      break;
+    case Effect::drift:
+      x.drift->relative_rate = std::clamp(coef, -0.5 / duration, 2.0 / duration);
+      break;
+    case Effect::delay:
+      x.delay->delay = coef;
+      break;
+    case Effect::stribeck: {
+      x.stribeck->static_force = std::clamp(f0 + coef, 0.3 * f0, 5.0 * f0);
+      x.stribeck->stribeck_velocity = w ? std::max(std::atof(w->detail.c_str()), 1e-12) : 1e-3;
+      x.stribeck->stribeck_exponent = 2.0;
+      break;
+    }
+    case Effect::position_dependence: {
+      double lambda = 1.0, phase = 0.0;
+      if (w) std::sscanf(w->detail.c_str(), "%lf %lf", &lambda, &phase);
+      x.position_dependence->amplitude = std::clamp(coef, -0.5 * f0, 0.5 * f0);
+      x.position_dependence->wavelength = lambda;
+      x.position_dependence->phase = phase;
+      break;
+    }
+    case Effect::normal_load: {
+      double sum = 0;
+      for (double v : r.normal) sum += v;
+      const double mean = sum / static_cast<double>(r.normal.size());
+      x.normal_load->friction_coefficient = mean > 0 ? f0 / mean : 1.0;
+      break;
+    }
+    case Effect::frictional_lag: {
+      const double ts = duration / static_cast<double>(r.size() - 1);
+      if (!x.viscous && !x.stribeck) {
+        x.enable(Effect::viscous);
+        const EffectEvidence* vw = find_evidence(ev, Effect::viscous);
+        x.viscous->viscous = std::max(vw ? vw->coefficient : 0.0, 0.0);
+        if (x.viscous->viscous <= 0)
+          x.viscous->viscous = 0.05 * f0 / std::max(ev.sliding_speed_max, 1e-12);
+      }
+      const double sigma2 = x.viscous ? x.viscous->viscous : 0.0;
+      x.frictional_lag->lag_time =
+          std::clamp(sigma2 > 0 ? -coef / sigma2 : 5 * ts, 2 * ts, duration / 20);
+      break;
+    }
+  }
+  x.reference_force = f0;
+  return x;
+}
+
+std::vector<Effect> applicable(const DiagnoseOptions& o, const Record& r) {
+  std::vector<Effect> out;
+  for (Effect e :
+       (o.candidates.empty() ? std::vector<Effect>(kAllEffects.begin(), kAllEffects.end())
+                             : o.candidates))
+    if (e != Effect::normal_load || r.has_normal()) out.push_back(e);
+  return out;
+}
+
+std::string partner_of(Effect e) {
+  switch (e) {
+    case Effect::offset:
+      return "asymmetry";
+    case Effect::asymmetry:
+      return "offset";
+    case Effect::inertia:
+      return "position-dependence";
+    case Effect::position_dependence:
+      return "inertia";
+    case Effect::delay:
+      return "frictional-lag";
+    case Effect::frictional_lag:
+      return "delay";
+    default:
+      return "";
+  }
+}
+
+std::string separating_excitation(Effect e) {
+  switch (e) {
+    case Effect::offset:
+    case Effect::asymmetry:
+      return "rest periods and small presliding loops (an offset shows at rest and in presliding, "
+             "an asymmetry only in the sliding levels)";
+    case Effect::inertia:
+    case Effect::position_dependence:
+      return "motion at several frequencies or amplitudes over the same travel (inertia follows "
+             "the "
+             "acceleration, a position term the position)";
+    case Effect::delay:
+    case Effect::frictional_lag:
+      return "velocity steps while sliding and presliding reversals (a delay shifts presliding "
+             "too, a frictional lag only acts while sliding)";
+    case Effect::viscous:
+    case Effect::stribeck:
+      return "sliding at several constant speeds";
+    default:
+      return "";
+  }
+}
+
+// Parameters in the model's own F0 (reference_force 0), as the saved model and findings use.
+ExtensionParameters<double> to_own_reference(const ExtensionParameters<double>& ext,
+                                             const MaxwellSlipParameters<double>& base) {
+  ExtensionParameters<double> out = ext;
+  const double f0ref = ext.reference_force;
+  out.reference_force = 0.0;
+  if (f0ref <= 0) return out;
+  const double ratio = base.sliding_force() / f0ref;
+  if (out.stribeck) out.stribeck->static_force *= ratio;
+  if (out.position_dependence) out.position_dependence->amplitude *= ratio;
+  if (out.normal_load) out.normal_load->friction_coefficient *= ratio;
+  return out;
+}
+
+Json piece_parameters(const ExtensionParameters<double>& ext, Effect e) {
+  Json j = Json::object();
+  ext.for_each_parameter([&](Effect pe, std::string_view name, const double& v) {
+    if (pe == e) j[std::string(name)] = v;
+  });
+  if (e == Effect::frictional_lag && ext.viscous) j["viscous"] = ext.viscous->viscous;
+  return j;
+}
+
+std::string extension_text(Effect e) {
+  switch (e) {
+    case Effect::viscous:
+      return "added viscous term sigma2 v";
+    case Effect::stribeck:
+      return "thresholds scaled by the Stribeck curve 1 + (Fs/F0 - 1) exp(-(|v|/vs)^q)";
+    case Effect::frictional_lag:
+      return "the velocity-dependent friction follows the velocity through a first-order lag";
+    case Effect::asymmetry:
+      return "thresholds scaled by 1 + a d (direction-dependent sliding levels)";
+    case Effect::offset:
+      return "added constant offset";
+    case Effect::inertia:
+      return "added inertial term m a";
+    case Effect::position_dependence:
+      return "thresholds scaled by 1 + (A/F0) sin(2 pi x / lambda + phi)";
+    case Effect::drift:
+      return "thresholds scaled by 1 + r t";
+    case Effect::delay:
+      return "the model is driven by the displacement delayed by D";
+    case Effect::normal_load:
+      return "thresholds scaled by mu N(t) / F0 (friction proportional to the normal force)";
+  }
+  return "";
+}
+
+std::string units_of(std::string_view name) {
+  if (name == "viscous") return "N s/m";
+  if (name == "static" || name == "offset" || name == "amplitude") return "N";
+  if (name == "stribeck_velocity") return "m/s";
+  if (name == "lag_time" || name == "delay") return "s";
+  if (name == "mass") return "kg";
+  if (name == "wavelength") return "m";
+  if (name == "phase") return "rad";
+  if (name == "relative_rate") return "1/s";
+  return "";
+}
+
+}  // namespace
+
+// -----------------------------------------------------------------------------------------------
+
+Json ResidualEvidence::to_json() const {
+  Json j;
+  j["rss_sss_percent"] = rss_sss_percent;
+  j["noise"] = {{"sigma", noise_sigma}, {"floor_percent", noise_floor_percent}};
+  j["regime"] = {
+      {"sliding", {{"samples", sliding_samples}, {"rms", sliding_rms}, {"mean", sliding_mean}}},
+      {"presliding",
+       {{"samples", presliding_samples}, {"rms", presliding_rms}, {"mean", presliding_mean}}}};
+  j["sliding_speed"] = {{"q05", sliding_speed_min}, {"q95", sliding_speed_max}};
+  Json bins = Json::array();
+  for (const auto& b : velocity_bins)
+    bins.push_back({{"direction", b.direction},
+                    {"speed_low", b.speed_low},
+                    {"speed_high", b.speed_high},
+                    {"mean_residual", b.mean_residual},
+                    {"samples", b.samples}});
+  j["velocity_bins"] = bins;
+  j["best_shift"] = best_shift;
+  std::size_t imax = 0;
+  for (std::size_t i = 0; i < xcorr_values.size(); ++i)
+    if (std::abs(xcorr_values[i]) > std::abs(xcorr_values[imax])) imax = i;
+  if (!xcorr_values.empty())
+    j["cross_correlation"] = {{"lags", xcorr_lags},
+                              {"values", xcorr_values},
+                              {"peak_lag", xcorr_lags[imax]},
+                              {"peak_value", xcorr_values[imax]}};
+  Json eff = Json::array();
+  for (const auto& e : effects)
+    eff.push_back({{"effect", std::string(effect_name(e.effect))},
+                   {"explained", e.explained},
+                   {"coefficient", e.coefficient},
+                   {"detail", e.detail}});
+  j["signatures"] = eff;
+  return j;
+}
+
+ResidualEvidence analyse_residual(const MaxwellSlipParameters<double>& base,
+                                  const ExtensionParameters<double>& extensions,
+                                  const Record& record) {
+  const std::vector<double> rho = estimate_rho(base, extensions, record, nullptr);
+  return evidence_of(base, extensions, record, rho, nullptr);
+}
+
+double extended_validation_percent(const MaxwellSlipParameters<double>& base,
+                                   const ExtensionParameters<double>& extensions,
+                                   const Record& record, std::vector<double>* simulated) {
+  const std::vector<double> rho = estimate_rho(base, extensions, record, nullptr);
+  const Run run = run_extended(base, extensions, deflections(base, rho), record);
+  double rss = 0;
+  for (std::size_t k = 0; k < record.size(); ++k)
+    rss += (record.force[k] - run.force[k]) * (record.force[k] - run.force[k]);
+  if (simulated) *simulated = run.force;
+  return percent(record.force, rss);
+}
+
+Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& o) {
+  const auto started = std::chrono::steady_clock::now();
+  FRICTION_CHECK(est.has_force() && val.has_force(), "diagnose: both records need a force");
+  FRICTION_CHECK(o.baseline == "maxwell-slip" || o.baseline == "lugre",
+                 "diagnose: baseline must be maxwell-slip or lugre, not ", o.baseline);
+  Diagnosis dx;
+  const std::size_t n = est.size();
+  const double sigma = estimate_white_noise_sigma(est.force);
+  const double floor_rss = static_cast<double>(n) * sigma * sigma;
+
+  // Baseline.
+  IdentifiedModel ms = identify_model("maxwell-slip", est, o.method);
+  dx.baseline_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  const auto& ms_ext = std::get<Extended<MaxwellSlip<double>>>(ms.model.variant());
+  State cur;
+  cur.base = ms_ext.base().parameters();
+  cur.rho.resize(cur.base.size());
+  for (std::size_t i = 0; i < cur.base.size(); ++i)
+    cur.rho[i] = i < ms.report.initial_deflections.size()
+                     ? ms.report.initial_deflections[i] / cur.base.threshold[i]
+                     : 0.0;
+  const double f0ref = cur.base.sliding_force();
+  cur.ext.reference_force = f0ref;
+  {
+    const Run run = run_extended(cur.base, cur.ext, deflections(cur.base, cur.rho), est);
+    cur.rss = 0;
+    for (std::size_t k = 0; k < n; ++k)
+      cur.rss += (est.force[k] - run.force[k]) * (est.force[k] - run.force[k]);
+  }
+  cur.validation = extended_validation_percent(cur.base, cur.ext, val);
+  for (const auto& w : ms.report.warnings) dx.warnings.push_back("baseline NLR: " + w);
+
+  const auto earns = [&](double rss0, double rss1, std::size_t p, double val0, double val1,
+                         double* dbic, double* required, std::string* verdict) {
+    *dbic = bic(rss1, n, p) - bic(rss0, n, 0);
+    *required =
+        std::max(chi2_999(p) * sigma * sigma, o.min_excess_share * std::max(rss0 - floor_rss, 0.0));
+    const double drop = rss0 - rss1;
+    std::ostringstream s;
+    bool ok = true;
+    if (!(*dbic < 0)) ok = false, s << "BIC does not fall (" << fmt(*dbic) << "); ";
+    if (!(drop > *required))
+      ok = false, s << "estimation drop " << fmt(drop) << " N^2 below the required "
+                    << fmt(*required) << " N^2; ";
+    if (std::isnan(val1))
+      ok = false, s << "(validation not evaluated)";
+    else if (!(val1 < val0))
+      ok = false,
+      s << "validation error does not fall (" << fmt(val0) << " -> " << fmt(val1) << " %); ";
+    if (ok) s << "earns its place";
+    *verdict = s.str();
+    return ok;
+  };
+
+  if (o.baseline == "lugre") {
+    IdentifiedModel lg = identify_model("lugre", est, o.method);
+    const Validation lv = validate_model(lg.model, val);
+    dx.baseline_model = lg.model;
+    dx.baseline_validation_percent = lv.errors.rss_sss_percent;
+    dx.baseline_estimation_percent = lg.report.estimation.rss_sss_percent;
+    dx.baseline_evidence.rss_sss_percent = lv.errors.rss_sss_percent;
+    dx.baseline_evidence.noise_sigma = lv.noise_sigma;
+    dx.baseline_evidence.noise_floor_percent = lv.noise_floor_percent;
+    for (const auto& w : lg.report.warnings) dx.warnings.push_back("baseline LG: " + w);
+    // The one candidate: Maxwell Slip elements (nonlocal memory).
+    const double rss_lg = lg.report.estimation.rss;
+    const std::size_t p_lg = lg.model.parameter_count(), p_ms = 2 * cur.base.size();
+    double dbic = 0, required = 0;
+    std::string verdict;
+    const double dbic_full = bic(cur.rss, n, p_ms) - bic(rss_lg, n, p_lg);
+    bool ok = earns(rss_lg, cur.rss, 0, lv.errors.rss_sss_percent, cur.validation, &dbic, &required,
+                    &verdict);
+    ok = ok && dbic_full < 0;
+    CandidateFit cf;
+    cf.nonlocal_memory = true;
+    cf.base = cur.base;
+    cf.estimation_rss = cur.rss;
+    cf.estimation_percent = percent(est.force, cur.rss);
+    cf.delta_bic = dbic_full;
+    cf.required_drop = required;
+    cf.validation_percent = cur.validation;
+    cf.earns_place = ok;
+    cf.verdict = verdict;
+    dx.first_round.push_back(cf);
+    if (!ok) {
+      dx.final_model = lg.model;
+      dx.final_validation_percent = lv.errors.rss_sss_percent;
+      dx.final_estimation_percent = dx.baseline_estimation_percent;
+      dx.seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+      return dx;
+    }
+    Finding f;
+    f.effect = "nonlocal-memory";
+    f.evidence = {{"estimation_before", dx.baseline_estimation_percent},
+                  {"estimation_after", cf.estimation_percent},
+                  {"delta_bic", dbic_full}};
+    f.extension = "Maxwell Slip elements (NLR) replace the single LuGre state";
+    f.parameters = {{"elements", cur.base.size()}};
+    f.validation_before = lv.errors.rss_sss_percent;
+    f.validation_after = cur.validation;
+    f.estimation_before = dx.baseline_estimation_percent;
+    f.estimation_after = cf.estimation_percent;
+    f.sentence = "The LuGre simulation misses the presliding hysteresis with nonlocal memory; " +
+                 std::to_string(cur.base.size()) +
+                 " Maxwell Slip elements take validation error from " + fmt(f.validation_before) +
+                 " % to " + fmt(f.validation_after) + " %.";
+    dx.findings.push_back(f);
+  } else {
+    dx.baseline_model = ms.model;
+    dx.baseline_validation_percent = cur.validation;
+    dx.baseline_estimation_percent = percent(est.force, cur.rss);
+  }
+  if (o.baseline != "lugre") {
+    const std::vector<double> rho_v = estimate_rho(cur.base, cur.ext, val, nullptr);
+    dx.baseline_evidence = evidence_of(cur.base, cur.ext, val, rho_v, nullptr);
+  }
+
+  const std::vector<Effect> pool = applicable(o, est);
+  struct Tried {
+    CandidateFit fit;
+    Fit result;
+  };
+  auto try_candidates = [&](const State& s, const std::vector<Effect>& effects) {
+    const ResidualEvidence ev = evidence_of(s.base, s.ext, est, s.rho, nullptr);
+    std::vector<Tried> out;
+    for (Effect e : effects) {
+      if (s.ext.has(e)) continue;
+      if (e == Effect::frictional_lag && s.ext.has(Effect::viscous) == false &&
+          s.ext.has(Effect::stribeck) == false && s.ext.has(Effect::frictional_lag))
+        continue;
+      ExtensionParameters<double> start = candidate_start(e, s.ext, ev, est, f0ref);
+      Tried t;
+      t.fit.effect = e;
+      const auto t_start = std::chrono::steady_clock::now();
+      try {
+        t.result = fit_extended(est, s.base, s.rho, start, false, o.max_iterations);
+      } catch (const std::exception& ex) {
+        t.fit.verdict = std::string("fit failed: ") + ex.what();
+        out.push_back(t);
+        continue;
+      }
+      if (!t.result.ok) {
+        t.fit.verdict = "fit failed";
+        out.push_back(t);
+        continue;
+      }
+      t.fit.extensions = t.result.ext;
+      t.fit.base = t.result.base;
+      t.fit.extra_parameters = extra_parameters(start, s.ext);
+      t.fit.estimation_rss = t.result.rss;
+      t.fit.estimation_percent = percent(est.force, t.result.rss);
+      // The validation record is only consulted (rule c) when rules a and b pass.
+      t.fit.validation_percent = std::numeric_limits<double>::quiet_NaN();
+      {
+        double dbic = 0, req = 0;
+        std::string v;
+        earns(s.rss, t.result.rss, t.fit.extra_parameters, s.validation, s.validation - 1.0, &dbic,
+              &req, &v);
+        if (v == "earns its place")
+          t.fit.validation_percent = extended_validation_percent(t.result.base, t.result.ext, val);
+      }
+      t.fit.earns_place =
+          earns(s.rss, t.result.rss, t.fit.extra_parameters, s.validation, t.fit.validation_percent,
+                &t.fit.delta_bic, &t.fit.required_drop, &t.fit.verdict);
+      t.fit.seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+      out.push_back(t);
+    }
+    // Nested candidates: a frictional lag that ends at (almost) no lag is the viscous piece, and
+    // a lag fitted with its own viscous companion must beat the viscous candidate alone.
+    const double ts = (est.time.back() - est.time.front()) / static_cast<double>(n - 1);
+    const Tried* viscous = nullptr;
+    for (const auto& t : out)
+      if (t.fit.effect == Effect::viscous && t.result.ok) viscous = &t;
+    for (auto& t : out) {
+      if (t.fit.effect != Effect::frictional_lag || !t.fit.earns_place) continue;
+      if (t.result.ext.frictional_lag->lag_time < ts) {
+        t.fit.earns_place = false;
+        t.fit.verdict = "lag_time fitted below one sample: no lag (the velocity piece covers it)";
+      } else if (viscous && !s.ext.has(Effect::viscous) &&
+                 bic(t.fit.estimation_rss, n, t.fit.extra_parameters) >=
+                     bic(viscous->fit.estimation_rss, n, viscous->fit.extra_parameters)) {
+        t.fit.earns_place = false;
+        t.fit.verdict = "no better than the viscous piece alone (BIC)";
+      }
+    }
+    return out;
+  };
+
+  // Greedy forward pass.
+  std::vector<State> chain{cur};
+  std::vector<std::vector<Tried>> rounds;
+  for (std::size_t round = 0; round < o.max_findings; ++round) {
+    std::vector<Tried> tried = try_candidates(chain.back(), pool);
+    if (round == 0)
+      for (const auto& t : tried) dx.first_round.push_back(t.fit);
+    const Tried* best = nullptr;
+    for (const auto& t : tried)
+      if (t.fit.earns_place && (!best || t.fit.validation_percent < best->fit.validation_percent))
+        best = &t;
+    if (!best) break;
+    State next;
+    next.base = best->result.base;
+    next.rho = best->result.rho;
+    next.ext = best->result.ext;
+    next.rss = best->fit.estimation_rss;
+    next.validation = best->fit.validation_percent;
+    next.order = chain.back().order;
+    next.order.push_back(best->fit.effect);
+    chain.push_back(next);
+    rounds.push_back(std::move(tried));
+  }
+
+  // Backward pass: drop any accepted piece that no longer earns its place against the others.
+  bool removed = false;
+  if (o.backward_pass && chain.back().order.size() >= 2) {
+    State full = chain.back();
+    for (std::size_t i = 0; i < full.order.size();) {
+      const Effect e = full.order[i];
+      ExtensionParameters<double> without = full.ext;
+      without.disable(e);
+      if (e == Effect::frictional_lag) {
+        // keep its viscous companion only if viscous was accepted on its own
+        if (std::find(full.order.begin(), full.order.end(), Effect::viscous) == full.order.end())
+          without.disable(Effect::viscous);
+      }
+      Fit f = fit_extended(est, full.base, full.rho, without, false, o.max_iterations);
+      const double v_without = extended_validation_percent(f.base, f.ext, val);
+      double dbic = 0, req = 0;
+      std::string verdict;
+      const bool still = f.ok && earns(f.rss, full.rss, extra_parameters(full.ext, without),
+                                       v_without, full.validation, &dbic, &req, &verdict);
+      if (!still && f.ok) {
+        dx.warnings.push_back(std::string("backward pass removed ") + std::string(effect_name(e)) +
+                              ": " + verdict);
+        full.base = f.base;
+        full.rho = f.rho;
+        full.ext = f.ext;
+        full.rss = f.rss;
+        full.validation = v_without;
+        full.order.erase(full.order.begin() + static_cast<std::ptrdiff_t>(i));
+        removed = true;
+        i = 0;
+        continue;
+      }
+      ++i;
+    }
+    if (removed) {
+      // Recompute the chain for what remains, in the accepted order, from the baseline.
+      std::vector<State> c2{chain.front()};
+      for (std::size_t i = 0; i < full.order.size(); ++i) {
+        ExtensionParameters<double> sub = full.ext;
+        for (Effect e : kAllEffects) {
+          bool keep = false;
+          for (std::size_t j = 0; j <= i; ++j)
+            keep = keep || full.order[j] == e ||
+                   (e == Effect::viscous && full.order[j] == Effect::frictional_lag);
+          if (!keep) sub.disable(e);
+        }
+        Fit f = i + 1 == full.order.size()
+                    ? Fit{full.base, full.rho, full.ext, full.rss, true}
+                    : fit_extended(est, full.base, full.rho, sub, false, o.max_iterations);
+        State st;
+        st.base = f.base;
+        st.rho = f.rho;
+        st.ext = f.ext;
+        st.rss = f.rss;
+        st.validation = i + 1 == full.order.size()
+                            ? full.validation
+                            : extended_validation_percent(f.base, f.ext, val);
+        st.order.assign(full.order.begin(),
+                        full.order.begin() + static_cast<std::ptrdiff_t>(i + 1));
+        c2.push_back(st);
+      }
+      chain = c2;
+    }
+  }
+
+  // Findings.
+  const double speed_span =
+      dx.baseline_evidence.sliding_speed_min > 0
+          ? dx.baseline_evidence.sliding_speed_max / dx.baseline_evidence.sliding_speed_min
+          : 0.0;
+  for (std::size_t i = 1; i < chain.size(); ++i) {
+    const State& before = chain[i - 1];
+    const State& after = chain[i];
+    const Effect e = after.order.back();
+    Finding f;
+    f.effect = std::string(effect_name(e));
+    const ExtensionParameters<double> own = to_own_reference(after.ext, after.base);
+    f.parameters = piece_parameters(own, e);
+    f.extension = extension_text(e);
+    f.validation_before = before.validation;
+    f.validation_after = after.validation;
+    f.estimation_before = percent(est.force, before.rss);
+    f.estimation_after = percent(est.force, after.rss);
+    // Evidence on the validation record, from the model before this finding.
+    const std::vector<double> rho_v = estimate_rho(before.base, before.ext, val, nullptr);
+    const ResidualEvidence ev = evidence_of(before.base, before.ext, val, rho_v, nullptr);
+    const EffectEvidence* sig = find_evidence(ev, e);
+    f.evidence = {{"validation_residual", ev.to_json()},
+                  {"signature_explained", sig ? sig->explained : 0.0},
+                  {"estimation_before", f.estimation_before},
+                  {"estimation_after", f.estimation_after},
+                  {"delta_bic", bic(after.rss, n, extra_parameters(after.ext, before.ext)) -
+                                    bic(before.rss, n, 0)},
+                  {"noise_floor_rss", floor_rss}};
+    // Ambiguity with the partner of methods.md 7, from the round that accepted this effect.
+    const std::string partner = partner_of(e);
+    if (!removed && i - 1 < rounds.size()) {
+      for (const auto& t : rounds[i - 1]) {
+        if (std::string(effect_name(t.fit.effect)) != partner || !t.result.ok) continue;
+        const double bic_gap = bic(t.fit.estimation_rss, n, t.fit.extra_parameters) -
+                               bic(after.rss, n, extra_parameters(after.ext, before.ext));
+        if (t.fit.earns_place && bic_gap < o.ambiguity_bic) {
+          f.ambiguous_with.push_back(partner);
+          f.separating_excitation = separating_excitation(e);
+        }
+      }
+    }
+    if ((e == Effect::viscous || e == Effect::stribeck) && speed_span > 0 && speed_span < 1.5) {
+      f.ambiguous_with.push_back("a higher Coulomb level (thresholds)");
+      f.separating_excitation = separating_excitation(e);
+    }
+    // One sentence.
+    std::ostringstream s;
+    const char* regime = ev.sliding_rms > 1.5 * ev.presliding_rms   ? "while sliding"
+                         : ev.presliding_rms > 1.5 * ev.sliding_rms ? "in presliding"
+                                                                    : "in both regimes";
+    s << "The simulation is off by " << fmt(std::max(ev.sliding_rms, ev.presliding_rms))
+      << " N RMS " << regime;
+    if (ev.sliding_samples)
+      s << " (sliding speeds " << fmt(ev.sliding_speed_min) << "-" << fmt(ev.sliding_speed_max)
+        << " m/s)";
+    s << "; cause: " << f.effect << "; extension: " << f.extension << " with";
+    for (auto it = f.parameters.begin(); it != f.parameters.end(); ++it)
+      s << " " << it.key() << " = " << fmt(it.value().get<double>(), 4) << " "
+        << units_of(it.key());
+    s << "; validation RSS/SSS " << fmt(f.validation_before) << " % -> " << fmt(f.validation_after)
+      << " % (gain x"
+      << fmt(f.validation_after > 0 ? f.validation_before / f.validation_after : 0.0) << ")";
+    if (!f.ambiguous_with.empty())
+      s << "; ambiguous with " << f.ambiguous_with.front()
+        << ", to separate: " << f.separating_excitation;
+    s << ".";
+    f.sentence = s.str();
+    dx.findings.push_back(f);
+  }
+  const State& last = chain.back();
+  dx.final_model = AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(last.base),
+                                                          to_own_reference(last.ext, last.base)));
+  dx.final_validation_percent = last.validation;
+  dx.final_estimation_percent = percent(est.force, last.rss);
+  dx.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  return dx;
+}
+
+Json Diagnosis::to_json() const {
+  Json j;
+  j["baseline"] = {
+      {"model", baseline_model ? baseline_model->to_json() : Json()},
+      {"validation",
+       {{"rss_sss_percent", baseline_validation_percent}, {"initial_state", "estimated"}}},
+      {"estimation", {{"rss_sss_percent", baseline_estimation_percent}}},
+      {"residual", baseline_evidence.to_json()}};
+  Json fs = Json::array();
+  for (const auto& f : findings) {
+    Json x = {{"effect", f.effect},
+              {"evidence", f.evidence},
+              {"extension", f.extension},
+              {"parameters", f.parameters},
+              {"validation_before", f.validation_before},
+              {"validation_after", f.validation_after},
+              {"gain", f.validation_after > 0 ? f.validation_before / f.validation_after : 0.0},
+              {"sentence", f.sentence}};
+    if (!f.ambiguous_with.empty()) {
+      x["ambiguous_with"] = f.ambiguous_with;
+      x["separating_excitation"] = f.separating_excitation;
+    }
+    fs.push_back(x);
+  }
+  j["findings"] = fs;
+  Json cands = Json::array();
+  for (const auto& c : first_round)
+    cands.push_back({{"effect", c.nonlocal_memory ? std::string("nonlocal-memory")
+                                                  : std::string(effect_name(c.effect))},
+                     {"estimation_rss_sss_percent", c.estimation_percent},
+                     {"validation_rss_sss_percent",
+                      std::isnan(c.validation_percent) ? Json() : Json(c.validation_percent)},
+                     {"delta_bic", c.delta_bic},
+                     {"extra_parameters", c.extra_parameters},
+                     {"earns_place", c.earns_place},
+                     {"seconds", c.seconds},
+                     {"verdict", c.verdict}});
+  j["candidates"] = cands;
+  j["final"] = {{"model", final_model ? final_model->to_json() : Json()},
+                {"validation",
+                 {{"rss_sss_percent", final_validation_percent}, {"initial_state", "estimated"}}},
+                {"estimation", {{"rss_sss_percent", final_estimation_percent}}}};
+  j["seconds"] = seconds;
+  return j;
+}
+
+std::string Diagnosis::to_table() const {
+  std::ostringstream s;
+  s << "Baseline " << (baseline_model ? baseline_model->type() : std::string("?"))
+    << ": validation RSS/SSS " << fmt(baseline_validation_percent, 4) << " % (estimation "
+    << fmt(baseline_estimation_percent, 4) << " %, noise floor "
+    << fmt(baseline_evidence.noise_floor_percent, 3) << " %)\n";
+  if (findings.empty())
+    s << "No finding: no candidate extension earned its place (the baseline explains the data "
+         "as far as this record can tell).\n";
+  for (std::size_t i = 0; i < findings.size(); ++i)
+    s << (i + 1) << ". " << findings[i].sentence << "\n";
+  s << "(" << fmt(seconds, 3) << " s, of which baseline " << fmt(baseline_seconds, 3) << " s)\n";
+  s << "Final model: validation RSS/SSS " << fmt(final_validation_percent, 4) << " %";
+  if (final_validation_percent > 0)
+    s << " (gain x" << fmt(baseline_validation_percent / final_validation_percent) << ")";
+  s << "\n";
+  if (!first_round.empty()) {
+    s << "Candidates of the first round (estimation %, validation %, delta BIC, verdict):\n";
+    for (const auto& c : first_round) {
+      char line[400];
+      std::snprintf(
+          line, sizeof line, "  %-20s %10.4g %10.4g %10.4g %6.2fs  %s\n",
+          c.nonlocal_memory ? "nonlocal-memory" : std::string(effect_name(c.effect)).c_str(),
+          c.estimation_percent, c.validation_percent, c.delta_bic, c.seconds, c.verdict.c_str());
+      s << line;
+    }
+  }
+  return s.str();
+}
+
+}  // namespace friction

@@ -1,0 +1,162 @@
+// Diagnosis: the pieces (initial state through extensions, residual evidence) and one short
+// end-to-end run with its JSON contract (cli.md).  The effect studies are test_diagnose_effects.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "diagnose_support.hpp"
+#include "friction/diagnose.hpp"
+#include "support/cli_runner.hpp"
+
+namespace friction::testing {
+namespace {
+
+MaxwellSlipParameters<double> truth_parameters() {
+  const SlipSystem s;
+  return {s.k, s.delta};
+}
+
+Record noiseless(Injected e, double magnitude, std::size_t n, double t0,
+                 const std::vector<double>& d0) {
+  Excitation ex;
+  Clean c = make_clean(e, magnitude, ex, n, t0);
+  if (std::any_of(d0.begin(), d0.end(), [](double v) { return v != 0; })) {
+    c.force = slip_force(SlipSystem{}, c.time, c.x, SlipLevel{}, d0);
+  }
+  return with_noise(c, 0.0, 1);
+}
+
+TEST(DiagnoseValidation, EstimatesTheInitialStateThroughTheExtensions) {
+  // The true model with an offset and a viscous piece, started from a non-virgin state: the
+  // validation error with the state estimated from the record must vanish.
+  const std::vector<double> d0{0.8e-6, -2e-6, 5e-6, -10e-6};
+  Record r = noiseless(Injected::none, 0, 3000, 0.0, d0);
+  for (std::size_t k = 0; k < r.size(); ++k) {
+    const double v =
+        k ? (r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]) : 0.0;
+    r.force[k] += 0.01 + 30.0 * v;
+  }
+  ExtensionParameters<double> ext;
+  ext.enable(Effect::offset);
+  ext.offset->offset = 0.01;
+  ext.enable(Effect::viscous);
+  ext.viscous->viscous = 30.0;
+  const double pct = extended_validation_percent(truth_parameters(), ext, r);
+  EXPECT_LT(pct, 1e-6);
+  // And the wrong model (no pieces) is clearly worse.
+  EXPECT_GT(extended_validation_percent(truth_parameters(), {}, r), 1e-3);
+}
+
+TEST(DiagnoseEvidence, AnOffsetIsTheTopSignatureWithItsSize) {
+  const Record r = noiseless(Injected::offset, 0.02, 3000, 0.0, {});
+  const ResidualEvidence ev = analyse_residual(truth_parameters(), {}, r);
+  ASSERT_FALSE(ev.effects.empty());
+  EXPECT_EQ(ev.effects.front().effect, Effect::offset);
+  EXPECT_NEAR(ev.effects.front().coefficient, 0.02, 0.002);
+  EXPECT_GT(ev.sliding_samples, 100u);
+  EXPECT_GT(ev.presliding_samples, 100u);
+  // Every velocity bin sees the offset.
+  ASSERT_FALSE(ev.velocity_bins.empty());
+  for (const auto& b : ev.velocity_bins) EXPECT_NEAR(b.mean_residual, 0.02, 0.005);
+}
+
+TEST(DiagnoseEvidence, ADelayShowsAsTheBestShift) {
+  const double delay = 0.004;  // 4 samples
+  const Record r = noiseless(Injected::delay, delay, 3000, 0.0, {});
+  const ResidualEvidence ev = analyse_residual(truth_parameters(), {}, r);
+  EXPECT_NEAR(ev.best_shift, delay, 0.6e-3);
+}
+
+TEST(DiagnoseEvidence, ViscousFrictionGrowsWithSpeedInTheBins) {
+  const Record r = noiseless(Injected::viscous, 40.0, 3000, 0.0, {});
+  const ResidualEvidence ev = analyse_residual(truth_parameters(), {}, r);
+  // In each direction the mean residual of the fastest bin exceeds the slowest's in magnitude,
+  // with the sign of the direction.
+  for (int d : {1, -1}) {
+    std::vector<ResidualEvidence::Bin> bins;
+    for (const auto& b : ev.velocity_bins)
+      if (b.direction == d) bins.push_back(b);
+    ASSERT_GE(bins.size(), 2u);
+    EXPECT_GT(d * bins.back().mean_residual, d * bins.front().mean_residual);
+    EXPECT_GT(d * bins.back().mean_residual, 0.0);
+  }
+}
+
+// One short end-to-end run: the JSON keys of cli.md, the chain of validation errors, and the
+// finding's sentence.
+TEST(Diagnose, ShortViscousRecordGivesAChainedFindingAndTheContractKeys) {
+  Excitation ex;
+  const double sigma = 2e-3;
+  const Record est = with_noise(make_clean(Injected::viscous, 40.0, ex, 3000, 0.0), sigma, 3);
+  const Record val = with_noise(make_clean(Injected::viscous, 40.0, ex, 3000, 3.0), sigma, 4);
+  const Diagnosis d = diagnose(est, val);
+  ASSERT_EQ(d.findings.size(), 1u) << d.to_table();
+  EXPECT_EQ(d.findings[0].effect, "viscous");
+  EXPECT_NEAR(d.findings[0].parameters["viscous"].get<double>(), 40.0, 6.0);
+  const Json j = d.to_json();
+  for (const char* key : {"baseline", "findings", "final"}) EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["baseline"]["model"]["type"], "maxwell-slip");
+  EXPECT_TRUE(j["baseline"]["validation"].contains("rss_sss_percent"));
+  const Json& f = j["findings"][0];
+  for (const char* key :
+       {"effect", "evidence", "extension", "parameters", "validation_before", "validation_after"})
+    EXPECT_TRUE(f.contains(key)) << key;
+  EXPECT_DOUBLE_EQ(f["validation_before"].get<double>(),
+                   j["baseline"]["validation"]["rss_sss_percent"].get<double>());
+  EXPECT_DOUBLE_EQ(f["validation_after"].get<double>(),
+                   j["final"]["validation"]["rss_sss_percent"].get<double>());
+  EXPECT_LT(f["validation_after"].get<double>(), f["validation_before"].get<double>());
+  EXPECT_TRUE(j["final"]["model"]["extensions"].contains("viscous"));
+  // The final model document loads back and reproduces the final validation error.
+  const AnyModel back = AnyModel::from_json(j["final"]["model"]);
+  const auto& m = std::get<Extended<MaxwellSlip<double>>>(back.variant());
+  EXPECT_NEAR(extended_validation_percent(m.base().parameters(), m.extensions(), val),
+              d.final_validation_percent, 1e-6 * d.final_validation_percent + 1e-12);
+  EXPECT_NE(d.to_table().find("cause: viscous"), std::string::npos);
+}
+
+// A LuGre baseline on a multi-element Maxwell Slip record: the single state misses the nonlocal
+// memory, and Maxwell Slip elements are the first finding.
+TEST(Diagnose, LuGreBaselineFindsNonlocalMemory) {
+  Excitation ex;
+  const Record est = with_noise(make_clean(Injected::none, 0, ex, 3000, 0.0), 2e-3, 7);
+  const Record val = with_noise(make_clean(Injected::none, 0, ex, 3000, 3.0), 2e-3, 8);
+  DiagnoseOptions o;
+  o.baseline = "lugre";
+  const Diagnosis d = diagnose(est, val, o);
+  ASSERT_FALSE(d.findings.empty()) << d.to_table();
+  EXPECT_EQ(d.findings[0].effect, "nonlocal-memory");
+  EXPECT_GE(d.findings[0].parameters["elements"].get<int>(), 2);
+  EXPECT_LT(d.findings[0].validation_after, d.findings[0].validation_before);
+  EXPECT_EQ(d.final_model->type(), "maxwell-slip");
+  EXPECT_DOUBLE_EQ(d.findings.back().validation_after, d.final_validation_percent);
+}
+
+TEST(DiagnoseCli, JsonDocumentFollowsTheContract) {
+  TempDir dir;
+  Excitation ex;
+  const Record r = with_noise(make_clean(Injected::offset, 0.01, ex, 4000, 0.0), 2e-3, 5);
+  std::string csv = "time,displacement,force\n";
+  char line[128];
+  for (std::size_t k = 0; k < r.size(); ++k) {
+    std::snprintf(line, sizeof line, "%.6f,%.10e,%.10e\n", r.time[k], r.displacement[k],
+                  r.force[k]);
+    csv += line;
+  }
+  write_text(dir.file("r.csv"), csv);
+  const auto res =
+      run_cli("diagnose --data " + dir.file("r.csv") + " --format json --svg " + dir.file("p.svg"));
+  ASSERT_EQ(res.status, 0) << res.err;
+  const Json j = Json::parse(res.out);
+  EXPECT_TRUE(j.contains("schema_version"));
+  EXPECT_TRUE(j["warnings"].is_array());
+  EXPECT_FALSE(j["warnings"].empty());  // the hold-out is announced
+  ASSERT_FALSE(j["findings"].empty());
+  EXPECT_EQ(j["findings"][0]["effect"], "offset");
+  EXPECT_NE(read_text(dir.file("p.svg")).find("<svg"), std::string::npos);
+  // Bad usage: an unknown baseline.
+  EXPECT_EQ(run_cli("diagnose --data " + dir.file("r.csv") + " --baseline nonsense").status, 2);
+}
+
+}  // namespace
+}  // namespace friction::testing
