@@ -339,19 +339,29 @@ void finish(std::span<const double> time, std::span<const double> x, std::span<c
         j.col(static_cast<Eigen::Index>(k)) = a * p.threshold[i];
       }
     }
-    Eigen::VectorXd sc(j.cols());
-    for (Eigen::Index k = 0; k < j.cols(); ++k) {
-      sc(k) = j.col(k).norm();
-      if (sc(k) == 0.0) sc(k) = 1.0;
+    // The initial deflections delta_i(0) are estimated from the same record: nuisance columns,
+    // so that the covariance of the parameters above is the marginal one (holding them at their
+    // estimate made the thresholds' intervals too narrow, studies.md 1).
+    std::vector<Eigen::VectorXd> nuisance;
+    for (Eigen::Index i = 0; i < mi; ++i) {
+      if (std::find(fit.never_saturating.begin(), fit.never_saturating.end(),
+                    static_cast<std::size_t>(i)) != fit.never_saturating.end())
+        continue;
+      const Eigen::VectorXd g = tr.d_initial.col(i);
+      Eigen::VectorXd a = Eigen::VectorXd::Zero(n);
+      for (std::size_t l = 0; l <= o.n; ++l)
+        a += p.theta(static_cast<std::size_t>(i), l) * detail::lagged(g, static_cast<Eigen::Index>(l));
+      if (a.norm() > 0.0) nuisance.push_back(std::move(a));
     }
-    Eigen::JacobiSVD<Eigen::MatrixXd> svd(j * sc.cwiseInverse().asDiagonal(), Eigen::ComputeThinV);
-    const Eigen::VectorXd sv = svd.singularValues();
-    const double dof = std::max(1.0, static_cast<double>(n) - static_cast<double>(j.cols()));
+    const Eigen::Index pj = j.cols();
+    Eigen::MatrixXd jn(n, pj + static_cast<Eigen::Index>(nuisance.size()));
+    jn.leftCols(pj) = j;
+    for (std::size_t k = 0; k < nuisance.size(); ++k) jn.col(pj + static_cast<Eigen::Index>(k)) = nuisance[k];
+    Eigen::MatrixXd cov;
+    const double dof = std::max(1.0, static_cast<double>(n) - static_cast<double>(jn.cols()));
     const double sigma2 = rep.estimation.rss / dof;
-    if (sv.size() > 0 && sv(sv.size() - 1) > 1e-10 * sv(0)) {
-      const Eigen::MatrixXd v = svd.matrixV();
-      Eigen::MatrixXd cov = v * sv.cwiseAbs2().cwiseInverse().asDiagonal() * v.transpose();
-      cov = sigma2 * sc.cwiseInverse().asDiagonal() * cov * sc.cwiseInverse().asDiagonal();
+    if (detail::marginal_covariance(jn, pj, cov, 1e-10)) {
+      cov *= sigma2;
       for (std::size_t a = 0; a < cols.size(); ++a) {
         auto& est = rep.parameters[static_cast<std::size_t>(cols[a])];
         const double se = std::sqrt(std::max(0.0, cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(a))));
@@ -376,11 +386,8 @@ void finish(std::span<const double> time, std::span<const double> x, std::span<c
         }
       }
     } else {
-      std::ostringstream w;
-      w << "the parameter covariance is rank-deficient (condition number "
-        << (sv.size() > 0 && sv(sv.size() - 1) > 0.0 ? sv(0) / sv(sv.size() - 1) : std::numeric_limits<double>::infinity())
-        << "); standard errors are not available";
-      rep.warnings.push_back(w.str());
+      rep.warnings.push_back(
+          "the parameter covariance is rank-deficient; standard errors are not available");
     }
   }
 }

@@ -17,6 +17,7 @@
 #include <Eigen/Core>
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
+#include <Eigen/SVD>
 
 #include <algorithm>
 #include <cmath>
@@ -413,5 +414,38 @@ struct StickBreaking {
     return s;
   }
 };
+
+/// Marginal (unscaled) covariance of the first `interest` parameters, (J^T J)^-1 restricted to
+/// them, where the remaining columns of J are nuisance parameters (initial states) estimated with
+/// them.  Columns are scaled to unit norm before the SVD; nuisance columns that are identically
+/// zero (an operator saturated from the first sample: its initial state has no effect) are left
+/// out.  When J is rank-deficient (reciprocal condition below `rcond`) the nuisance columns are
+/// held fixed instead (the conditional covariance); false when even that is rank-deficient.
+inline bool marginal_covariance(const Eigen::MatrixXd& jac, Eigen::Index interest,
+                                Eigen::MatrixXd& out, double rcond = 1e-10) {
+  auto attempt = [&](bool with_nuisance) {
+    std::vector<Eigen::Index> cols;
+    for (Eigen::Index c = 0; c < jac.cols(); ++c)
+      if (c < interest || (with_nuisance && jac.col(c).norm() > 0.0)) cols.push_back(c);
+    const Eigen::Index p = static_cast<Eigen::Index>(cols.size());
+    Eigen::MatrixXd j(jac.rows(), p);
+    Eigen::VectorXd sc(p);
+    for (Eigen::Index k = 0; k < p; ++k) {
+      j.col(k) = jac.col(cols[static_cast<std::size_t>(k)]);
+      sc(k) = j.col(k).norm();
+      if (sc(k) == 0.0) sc(k) = 1.0;
+      j.col(k) /= sc(k);
+    }
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(j, Eigen::ComputeThinV);
+    const Eigen::VectorXd sv = svd.singularValues();
+    if (sv.size() == 0 || !(sv(sv.size() - 1) > rcond * sv(0))) return false;
+    const Eigen::MatrixXd v = svd.matrixV().topRows(interest);
+    out = sc.head(interest).cwiseInverse().asDiagonal() *
+          (v * sv.cwiseAbs2().cwiseInverse().asDiagonal() * v.transpose()) *
+          sc.head(interest).cwiseInverse().asDiagonal();
+    return out.allFinite();
+  };
+  return attempt(true) || attempt(false);
+}
 
 }  // namespace friction::detail

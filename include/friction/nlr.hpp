@@ -59,8 +59,10 @@
 //    saturates, so they are not counted).  BIC rather than AIC: with N in the thousands AIC's
 //    penalty of 2 per parameter accepts operators that fit noise; an inner split would halve the
 //    data that determine the large thresholds, which are seen at only a few reversals.
-//  * Uncertainty: ceres::Covariance of (log k, log Delta) at the optimum (initial state held at
-//    its estimate), scaled by sigma^2 = RSS / (N - 2M); 95 % intervals are log-normal,
+//    The stage is skipped when the best start is already at the noise floor (RSS below
+//    N sigma^2 + 3 sqrt(2N) sigma^2, sigma = estimate_white_noise_sigma).
+//  * Uncertainty: marginal covariance of (log k, log Delta) at the optimum with the relative
+//    initial deflections rho as nuisance parameters, scaled by sigma^2 = RSS / (N - 3M); 95 % intervals are log-normal,
 //    value * exp(+-1.96 se_log).  A rank-deficient covariance is a warning, never a NaN.
 //
 // Variable projection versus joint optimisation of (log k, s, rho), both with the same exact
@@ -98,7 +100,7 @@ struct NlrOptions {
   NlrSolver solver = NlrSolver::VariableProjection;
   bool global_stage = true;        ///< NLopt stage when the starts disagree
   double stall_tolerance = 0.01;   ///< relative difference of two minima that makes them distinct
-  int global_evaluations = 0;      ///< NLopt budget per M; 0 means 40 M
+  int global_evaluations = 0;      ///< NLopt budget per M; 0: 500 M at a fixed M, 150 M in selection
   int max_iterations = 100;        ///< Ceres iterations per local search
   double function_tolerance = 1e-8;  ///< Ceres: stop when |cost change| / cost falls below
   unsigned seed = 1;               ///< NLopt's random seed (results are reproducible)
