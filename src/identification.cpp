@@ -37,15 +37,7 @@ double displacement_resolution(std::span<const double> x) {
   return std::max(floor, steps[steps.size() / 100]);
 }
 
-double travel_at_force_fraction(std::span<const double> x, std::span<const double> force,
-                                double fraction) {
-  FRICTION_CHECK(x.size() == force.size() && x.size() >= 2,
-                 "travel_at_force_fraction: displacement and force lengths differ");
-  FRICTION_CHECK(fraction > 0.0 && fraction <= 1.0, "travel_at_force_fraction: fraction ", fraction,
-                 " must be in (0, 1]");
-  const double range = 2.0 * largest_travel(x);
-  const double h = std::max(3.0 * displacement_resolution(x), 1e-4 * range);
-  // Turning points with hysteresis h.
+std::vector<std::size_t> turning_points(std::span<const double> x, double h) {
   std::vector<std::size_t> turns{0};
   int dir = 0;
   std::size_t ext = 0;
@@ -67,7 +59,19 @@ double travel_at_force_fraction(std::span<const double> x, std::span<const doubl
         turns.push_back(ext), dir = +1, ext = t;
     }
   }
-  turns.push_back(x.size() - 1);
+  if (turns.back() != x.size() - 1) turns.push_back(x.size() - 1);
+  return turns;
+}
+
+double travel_at_force_fraction(std::span<const double> x, std::span<const double> force,
+                                double fraction) {
+  FRICTION_CHECK(x.size() == force.size() && x.size() >= 2,
+                 "travel_at_force_fraction: displacement and force lengths differ");
+  FRICTION_CHECK(fraction > 0.0 && fraction <= 1.0, "travel_at_force_fraction: fraction ", fraction,
+                 " must be in (0, 1]");
+  const double range = 2.0 * largest_travel(x);
+  const double h = std::max(3.0 * displacement_resolution(x), 1e-4 * range);
+  const std::vector<std::size_t> turns = turning_points(x, h);
   double best_swing = 0.0, travel = range;
   for (std::size_t s = 0; s + 1 < turns.size(); ++s) {
     const std::size_t a = turns[s], b = turns[s + 1];

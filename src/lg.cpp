@@ -132,31 +132,6 @@ struct Segment {
   bool slides = false;
 };
 
-std::vector<std::size_t> turning_points(std::span<const double> x, double h) {
-  std::vector<std::size_t> turns{0};
-  int dir = 0;
-  std::size_t ext = 0;
-  for (std::size_t t = 1; t < x.size(); ++t) {
-    if (dir == 0) {
-      if (x[t] - x[0] > h)
-        dir = +1, ext = t;
-      else if (x[0] - x[t] > h)
-        dir = -1, ext = t;
-    } else if (dir > 0) {
-      if (x[t] > x[ext])
-        ext = t;
-      else if (x[ext] - x[t] > h)
-        turns.push_back(ext), dir = -1, ext = t;
-    } else {
-      if (x[t] < x[ext])
-        ext = t;
-      else if (x[t] - x[ext] > h)
-        turns.push_back(ext), dir = +1, ext = t;
-    }
-  }
-  if (turns.back() != x.size() - 1) turns.push_back(x.size() - 1);
-  return turns;
-}
 
 std::vector<Segment> segments_of(std::span<const double> x, std::span<const double> force) {
   const double range = 2.0 * largest_travel(x);

@@ -100,6 +100,11 @@ struct IdentificationReport {
 /// Displacement resolution q of a record (see the header comment) [m].
 double displacement_resolution(std::span<const double> x);
 
+/// Indices of the turning points of x, detected with hysteresis h [m] (a reversal counts once x
+/// has come back by more than h from its extreme, so noise does not make reversals): the first
+/// sample, every extreme, and the last sample.
+std::vector<std::size_t> turning_points(std::span<const double> x, double h);
+
 /// Largest travel L = (max x - min x) / 2 [m].
 double largest_travel(std::span<const double> x);
 
