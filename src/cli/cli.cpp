@@ -41,6 +41,16 @@ void emit(const OutputOptions& out, const std::string& text) {
   }
 }
 
+void emit_table(const OutputOptions& out, const std::string& table, const Json& document) {
+  if (out.out.empty()) {
+    emit(out, table);
+    return;
+  }
+  std::fwrite(table.data(), 1, table.size(), stdout);
+  std::fflush(stdout);
+  emit(out, document.dump(2) + "\n");
+}
+
 Json new_document(const std::string& command) {
   Json d;
   d["schema_version"] = 1;
@@ -58,12 +68,15 @@ void add_warnings(Json& document, const std::vector<std::string>& warnings) {
 }
 
 void add_input_options(CLI::App& command, InputOptions& in) {
-  command.add_option("--columns", in.columns,
-                     "Columns by header name: time=NAME,displacement=NAME,force=NAME[,normal=NAME]");
-  command.add_option("--units", in.units,
-                     "Units of the file's columns, e.g. displacement=mm,force=uN,time=ms (SI default)");
-  command.add_option("--force-sign", in.force_sign,
-                     "Sign of the recorded force: +1, -1 or auto (detected from F*v while sliding)")
+  command.add_option(
+      "--columns", in.columns,
+      "Columns by header name: time=NAME,displacement=NAME,force=NAME[,normal=NAME]");
+  command.add_option(
+      "--units", in.units,
+      "Units of the file's columns, e.g. displacement=mm,force=uN,time=ms (SI default)");
+  command
+      .add_option("--force-sign", in.force_sign,
+                  "Sign of the recorded force: +1, -1 or auto (detected from F*v while sliding)")
       ->capture_default_str();
 }
 
@@ -75,8 +88,9 @@ void add_output_options(CLI::App& command, OutputOptions& out) {
 }
 
 int run(int argc, char** argv) {
-  CLI::App app{"friction-identify: identify friction models (LuGre, Maxwell Slip, DNLRX, GMS) "
-               "from displacement-force records"};
+  CLI::App app{
+      "friction-identify: identify friction models (LuGre, Maxwell Slip, DNLRX, GMS) "
+      "from displacement-force records"};
   app.set_version_flag("--version", std::string("friction-identify ") + version());
   app.require_subcommand(1);
   const Action generate = register_generate(app);

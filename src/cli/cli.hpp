@@ -42,6 +42,10 @@ AnyModel load_model(const std::string& path);
 /// Writes `text` to `out.out` atomically, or to stdout.
 void emit(const OutputOptions& out, const std::string& text);
 
+/// Table output: with --out the table goes to stdout and the file gets the JSON document (what a
+/// script or `simulate --model-file` loads); without it the table goes to stdout.
+void emit_table(const OutputOptions& out, const std::string& table, const Json& document);
+
 /// A JSON document with the keys every document carries (schema_version, warnings).
 Json new_document(const std::string& command);
 

@@ -141,12 +141,7 @@ int run_diagnose(const DiagnoseCliOptions& o) {
      << num(d.seconds, 3) << " s\n"
      << d.to_table();
   if (!doc["warnings"].empty()) os << doc["warnings"].size() << " warning(s), on stderr\n";
-  if (!o.output.out.empty()) {
-    std::cout << os.str();
-    emit(o.output, doc.dump(2) + "\n");
-  } else {
-    emit(o.output, os.str());
-  }
+  emit_table(o.output, os.str(), doc);
   return kExitOk;
 }
 

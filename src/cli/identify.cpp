@@ -189,13 +189,7 @@ int run_identify(const IdentifyOptions& o) {
   print_errors(os, "estimation", m.report.estimation, m.report.noise_floor_percent);
   if (val) print_errors(os, "validation", val->errors, val->noise_floor_percent);
   if (!doc["warnings"].empty()) os << "  " << doc["warnings"].size() << " warning(s), on stderr\n";
-  if (!o.output.out.empty()) {
-    // The table goes to stdout; the file gets the document a script or `simulate` can load.
-    std::cout << os.str();
-    emit(o.output, doc.dump(2) + "\n");
-  } else {
-    emit(o.output, os.str());
-  }
+  emit_table(o.output, os.str(), doc);
   return kExitOk;
 }
 
@@ -311,12 +305,7 @@ int run_compare(const CompareOptions& o) {
     break;
   }
   if (!doc["warnings"].empty()) os << doc["warnings"].size() << " warning(s), on stderr\n";
-  if (!o.output.out.empty()) {
-    std::cout << os.str();
-    emit(o.output, doc.dump(2) + "\n");
-  } else {
-    emit(o.output, os.str());
-  }
+  emit_table(o.output, os.str(), doc);
   return status;
 }
 
