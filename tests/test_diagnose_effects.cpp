@@ -28,6 +28,9 @@ struct Case {
   double secondary_value = 0, secondary_tolerance = 0;
 };
 
+// Readable test names in ctest: the case prints as its effect (not as the bytes of the struct).
+void PrintTo(const Case& c, std::ostream* os) { *os << injected_name(c.effect); }
+
 // The magnitude whose contribution (RMS of the force change) is `ratio` x the noise RMS.
 double magnitude_for(const Case& c, double ratio, const Excitation& ex) {
   if (c.effect == Injected::normal) return c.nominal;  // the normal force's swing sets the size
