@@ -1,9 +1,6 @@
 // Diagnosis of a baseline's residual and greedy extension (see diagnose.hpp for the method).
 #include "friction/diagnose.hpp"
 
-#include <ceres/ceres.h>
-#include <ceres/dynamic_autodiff_cost_function.h>
-
 #include <Eigen/Dense>
 
 #include <algorithm>
@@ -13,6 +10,7 @@
 #include <numeric>
 #include <sstream>
 
+#include "friction/extension_fit.hpp"
 #include "friction/identification.hpp"
 #include "friction/initial_state.hpp"
 #include "friction/metrics.hpp"
@@ -61,283 +59,6 @@ double quantile(std::vector<double> v, double q) {
       static_cast<std::size_t>(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size() - 1));
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
   return v[k];
-}
-
-// ---------------------------------------------------------------------------------------------
-// Free run of an extended Maxwell Slip model in double, with the regime of every sample.  The
-// context is built exactly as simulate_extended builds it (tests compare the two).
-
-struct Run {
-  std::vector<double> force;
-  std::vector<char> sliding;
-  std::vector<double> velocity, acceleration;  // of the (shifted) record
-};
-
-Run run_extended(const MaxwellSlipParameters<double>& base, const ExtensionParameters<double>& ext,
-                 std::span<const double> initial, const Record& r) {
-  const std::size_t n = r.size();
-  Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(base), ext, 2);
-  model.base().reset(initial);
-  std::vector<double> xs(r.displacement);
-  const auto& time = r.time;
-  if (ext.delay && ext.delay->delay != 0.0) {
-    std::size_t j = 0;
-    for (std::size_t k = 0; k < n; ++k) {
-      const double tv = time[k] - ext.delay->delay;
-      if (tv <= time.front()) {
-        xs[k] = r.displacement.front();
-      } else if (tv >= time.back()) {
-        xs[k] = r.displacement.back();
-      } else {
-        while (j + 1 < n && time[j + 1] <= tv) ++j;
-        const double w = (tv - time[j]) / (time[j + 1] - time[j]);
-        xs[k] = r.displacement[j] + (r.displacement[j + 1] - r.displacement[j]) * w;
-      }
-    }
-  }
-  Run out;
-  out.velocity.assign(n, 0.0);
-  out.acceleration.assign(n, 0.0);
-  for (std::size_t k = 1; k < n; ++k)
-    out.velocity[k] = (xs[k] - xs[k - 1]) / (time[k] - time[k - 1]);
-  if (n >= 3) {
-    for (std::size_t k = 1; k + 1 < n; ++k)
-      out.acceleration[k] =
-          (out.velocity[k + 1] - out.velocity[k]) / (0.5 * (time[k + 1] - time[k - 1]));
-    out.acceleration[0] = out.acceleration[1];
-    out.acceleration[n - 1] = out.acceleration[n - 2];
-  }
-  out.force.resize(n);
-  out.sliding.resize(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    ExtendedMotion<double> c;
-    c.x = xs[k];
-    c.dx = k > 0 ? xs[k] - xs[k - 1] : 0.0;
-    c.velocity = out.velocity[k];
-    c.acceleration = out.acceleration[k];
-    c.dt = k > 0 ? time[k] - time[k - 1] : 0.0;
-    c.time = time[k] - time.front();
-    if (r.has_normal()) {
-      c.normal = r.normal[k];
-      c.has_normal = true;
-    }
-    out.force[k] = model.step_shifted(c);
-    out.sliding[k] = model.base().sliding(model.level()) ? 1 : 0;
-  }
-  return out;
-}
-
-// ---------------------------------------------------------------------------------------------
-// The cost: residuals of the extended model's free run, parameters in two blocks:
-//   theta = [log k (M), log Delta (M), extension parameters in for_each_parameter order]
-//   rho   = relative initial deflections (M), in [-1, 1]
-// The extension template fixes which pieces are on and the reference force F0.
-
-struct ExtendedCost {
-  const Record* record;
-  std::size_t operators;
-  ExtensionParameters<double> pieces;
-  double scale;  // 1 / rms(F)
-
-  template <typename T>
-  bool operator()(T const* const* p, T* residual) const {
-    using std::exp;
-    const std::size_t m = operators;
-    MaxwellSlipParameters<T> mp;
-    mp.stiffness.resize(m);
-    mp.threshold.resize(m);
-    for (std::size_t i = 0; i < m; ++i) {
-      mp.stiffness[i] = exp(p[0][i]);
-      mp.threshold[i] = exp(p[0][m + i]);
-    }
-    ExtensionParameters<T> ext = pieces.template cast<T>([](double v) { return T(v); });
-    std::size_t j = 2 * m;
-    ext.for_each_parameter([&](Effect, std::string_view, T& v) { v = p[0][j++]; });
-    ext.reference_force = T(pieces.reference_force);
-    try {
-      Extended<MaxwellSlip<T>> model(MaxwellSlip<T>(std::move(mp)), std::move(ext), 2);
-      std::vector<T> d(m);
-      for (std::size_t i = 0; i < m; ++i) d[i] = p[1][i] * exp(p[0][m + i]);
-      model.base().reset(std::span<const T>(d));
-      const Record& r = *record;
-      const std::size_t n = r.size();
-      // Reused between evaluations (per thread and scalar type): no allocation per evaluation.
-      thread_local std::vector<T> x, f;
-      x.resize(n);
-      f.resize(n);
-      for (std::size_t k = 0; k < n; ++k) x[k] = T(r.displacement[k]);
-      simulate_extended(model, std::span<const double>(r.time), std::span<const T>(x),
-                        std::span<const double>(r.normal), std::span<T>(f));
-      for (std::size_t k = 0; k < n; ++k) residual[k] = (T(r.force[k]) - f[k]) * scale;
-    } catch (const InvalidParameter&) {
-      return false;  // outside the domain: Ceres rejects the step
-    }
-    return true;
-  }
-};
-
-struct Bounds {
-  double lower, upper;
-};
-
-// Box of each extension parameter during the fit (F0 the reference force, T the duration).
-Bounds parameter_bounds(Effect e, std::string_view name, double f0, double duration, double vmax) {
-  const double inf = std::numeric_limits<double>::infinity();
-  switch (e) {
-    case Effect::viscous:
-      return {0.0, inf};
-    case Effect::stribeck:
-      if (name == "static") return {0.05 * f0, 20.0 * f0};
-      if (name == "stribeck_velocity") return {1e-6 * vmax, 10.0 * vmax};
-      return {0.3, 5.0};
-    case Effect::frictional_lag:
-      return {0.0, duration / 4};
-    case Effect::asymmetry:
-      return {-0.9, 0.9};
-    case Effect::offset:
-      return {-inf, inf};
-    case Effect::inertia:
-      return {0.0, inf};
-    case Effect::position_dependence:
-      if (name == "amplitude") return {-0.9 * f0, 0.9 * f0};
-      if (name == "wavelength") return {1e-12, inf};
-      return {-inf, inf};
-    case Effect::drift:
-      return {-0.9 / duration, 5.0 / duration};
-    case Effect::delay:
-      return {-duration / 10, duration / 10};
-    case Effect::normal_load:
-      return {1e-12, inf};
-  }
-  return {-inf, inf};
-}
-
-struct Fit {
-  MaxwellSlipParameters<double> base;
-  std::vector<double> rho;
-  ExtensionParameters<double> ext;
-  double rss = 0;
-  bool ok = false;
-};
-
-// Fits theta (and rho) from the given start; `fix_theta` estimates the initial state only.
-Fit fit_extended(const Record& r, const MaxwellSlipParameters<double>& base0,
-                 const std::vector<double>& rho0, const ExtensionParameters<double>& ext0,
-                 bool fix_theta, int max_iterations) {
-  const std::size_t m = base0.size();
-  std::vector<double> theta;
-  for (std::size_t i = 0; i < m; ++i) theta.push_back(std::log(base0.stiffness[i]));
-  for (std::size_t i = 0; i < m; ++i) theta.push_back(std::log(base0.threshold[i]));
-  std::vector<std::pair<Effect, std::string>> names;
-  ext0.for_each_parameter([&](Effect e, std::string_view name, const double& v) {
-    theta.push_back(v);
-    names.emplace_back(e, std::string(name));
-  });
-  std::vector<double> rho(rho0);
-  rho.resize(m, 0.0);
-  for (double& v : rho) v = std::clamp(v, -1.0, 1.0);
-
-  double rms = std::sqrt(sum_sq(r.force) / static_cast<double>(r.size()));
-  auto* functor = new ExtendedCost{&r, m, ext0, rms > 0 ? 1.0 / rms : 1.0};
-  auto* cost = new ceres::DynamicAutoDiffCostFunction<ExtendedCost, 16>(functor);
-  cost->AddParameterBlock(static_cast<int>(theta.size()));
-  cost->AddParameterBlock(static_cast<int>(m));
-  cost->SetNumResiduals(static_cast<int>(r.size()));
-  ceres::Problem problem;
-  problem.AddResidualBlock(cost, nullptr, theta.data(), rho.data());
-  for (std::size_t i = 0; i < m; ++i) {
-    problem.SetParameterLowerBound(rho.data(), static_cast<int>(i), -1.0);
-    problem.SetParameterUpperBound(rho.data(), static_cast<int>(i), 1.0);
-  }
-  const double duration = std::max(r.time.back() - r.time.front(), 1e-12);
-  double vmax = 0;
-  for (std::size_t k = 1; k < r.size(); ++k)
-    vmax = std::max(
-        vmax, std::abs(r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]));
-  const double f0 = ext0.reference_force > 0 ? ext0.reference_force : base0.sliding_force();
-  for (std::size_t j = 0; j < names.size(); ++j) {
-    const Bounds b =
-        parameter_bounds(names[j].first, names[j].second, f0, duration, std::max(vmax, 1e-12));
-    double& v = theta[2 * m + j];
-    v = std::clamp(v, b.lower, b.upper);
-    if (std::isfinite(b.lower))
-      problem.SetParameterLowerBound(theta.data(), static_cast<int>(2 * m + j), b.lower);
-    if (std::isfinite(b.upper))
-      problem.SetParameterUpperBound(theta.data(), static_cast<int>(2 * m + j), b.upper);
-  }
-  // Thresholds inside [q, L] as NLR keeps them (nlr.hpp): an operator beyond the travel with a
-  // large initial deflection would otherwise act as a free offset.
-  {
-    const double q = displacement_resolution(r.displacement);
-    const double big = std::max(largest_travel(r.displacement), q * 1.0001);
-    for (std::size_t i = 0; i < m; ++i) {
-      double& v = theta[m + i];
-      const double lo = std::log(std::min(q, base0.threshold[i]));
-      const double hi = std::log(std::max(big, base0.threshold[i]));
-      v = std::clamp(v, lo, hi);
-      problem.SetParameterLowerBound(theta.data(), static_cast<int>(m + i), lo);
-      problem.SetParameterUpperBound(theta.data(), static_cast<int>(m + i), hi);
-    }
-  }
-  if (fix_theta) problem.SetParameterBlockConstant(theta.data());
-
-  ceres::Solver::Options options;
-  options.minimizer_type = ceres::TRUST_REGION;
-  options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-  options.linear_solver_type = ceres::DENSE_QR;
-  options.max_num_iterations = max_iterations;
-  options.num_threads = 1;
-  options.logging_type = ceres::SILENT;
-  options.minimizer_progress_to_stdout = false;
-  // A relative cost change of 1e-7 is 1e-3 BIC units at N = 1e4: far below any decision here.
-  options.function_tolerance = 1e-7;
-  options.parameter_tolerance = 1e-9;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
-
-  Fit out;
-  out.base.stiffness.resize(m);
-  out.base.threshold.resize(m);
-  for (std::size_t i = 0; i < m; ++i) {
-    out.base.stiffness[i] = std::exp(theta[i]);
-    out.base.threshold[i] = std::exp(theta[m + i]);
-  }
-  out.ext = ext0;
-  std::size_t j = 2 * m;
-  out.ext.for_each_parameter([&](Effect, std::string_view, double& v) { v = theta[j++]; });
-  out.rho = rho;
-  out.ok = summary.IsSolutionUsable();
-  out.rss = out.ok ? 2.0 * summary.final_cost * rms * rms : std::numeric_limits<double>::infinity();
-  return out;
-}
-
-std::vector<double> deflections(const MaxwellSlipParameters<double>& base,
-                                const std::vector<double>& rho) {
-  std::vector<double> d(base.size());
-  for (std::size_t i = 0; i < base.size(); ++i) d[i] = rho[i] * base.threshold[i];
-  return d;
-}
-
-// Initial state estimated from the record for fixed parameters: the plain Maxwell Slip estimate as
-// a start, refined through the extended model.
-std::vector<double> estimate_rho(const MaxwellSlipParameters<double>& base,
-                                 const ExtensionParameters<double>& ext, const Record& r,
-                                 double* rss) {
-  std::vector<double> d = estimate_initial_deflections(base, r.displacement, r.force);
-  std::vector<double> rho(base.size());
-  for (std::size_t i = 0; i < base.size(); ++i) rho[i] = d[i] / base.threshold[i];
-  Fit f = fit_extended(r, base, rho, ext, /*fix_theta=*/true, 30);
-  // Guard: the refinement never makes it worse than its start.
-  const Run start = run_extended(base, ext, deflections(base, rho), r);
-  double rss0 = 0;
-  for (std::size_t k = 0; k < r.size(); ++k)
-    rss0 += (r.force[k] - start.force[k]) * (r.force[k] - start.force[k]);
-  if (!f.ok || f.rss > rss0) {
-    if (rss) *rss = rss0;
-    return rho;
-  }
-  if (rss) *rss = f.rss;
-  return f.rho;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -390,7 +111,7 @@ ResidualEvidence evidence_of(const MaxwellSlipParameters<double>& base,
                              const ExtensionParameters<double>& ext, const Record& r,
                              const std::vector<double>& rho, Signals* signals_out) {
   const std::size_t n = r.size();
-  const Run run = run_extended(base, ext, deflections(base, rho), r);
+  const ExtendedSlipRun run = run_extended_slip(base, ext, deflections_from_relative(base, rho), r);
   Signals s;
   s.f0 = ext.reference_force > 0 ? ext.reference_force : base.sliding_force();
   s.e.resize(n);
@@ -608,8 +329,9 @@ std::size_t extra_parameters(const ExtensionParameters<double>& with,
   return with.parameter_count() - without.parameter_count();
 }
 
-// The current pieces plus the candidate's, with a data-driven start.
-ExtensionParameters<double> candidate_start(Effect e, const ExtensionParameters<double>& current,
+}  // namespace
+
+ExtensionParameters<double> extension_start(Effect e, const ExtensionParameters<double>& current,
                                             const ResidualEvidence& ev, const Record& r,
                                             double f0) {
   ExtensionParameters<double> x = current;
@@ -675,6 +397,8 @@ ExtensionParameters<double> candidate_start(Effect e, const ExtensionParameters<
   x.reference_force = f0;
   return x;
 }
+
+namespace {
 
 std::vector<Effect> applicable(const DiagnoseOptions& o, const Record& r) {
   std::vector<Effect> out;
@@ -831,15 +555,16 @@ Json ResidualEvidence::to_json() const {
 ResidualEvidence analyse_residual(const MaxwellSlipParameters<double>& base,
                                   const ExtensionParameters<double>& extensions,
                                   const Record& record) {
-  const std::vector<double> rho = estimate_rho(base, extensions, record, nullptr);
+  const std::vector<double> rho = estimate_relative_deflections(base, extensions, record, nullptr);
   return evidence_of(base, extensions, record, rho, nullptr);
 }
 
 double extended_validation_percent(const MaxwellSlipParameters<double>& base,
                                    const ExtensionParameters<double>& extensions,
                                    const Record& record, std::vector<double>* simulated) {
-  const std::vector<double> rho = estimate_rho(base, extensions, record, nullptr);
-  const Run run = run_extended(base, extensions, deflections(base, rho), record);
+  const std::vector<double> rho = estimate_relative_deflections(base, extensions, record, nullptr);
+  const ExtendedSlipRun run =
+      run_extended_slip(base, extensions, deflections_from_relative(base, rho), record);
   double rss = 0;
   for (std::size_t k = 0; k < record.size(); ++k)
     rss += (record.force[k] - run.force[k]) * (record.force[k] - run.force[k]);
@@ -872,7 +597,8 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
   const double f0ref = cur.base.sliding_force();
   cur.ext.reference_force = f0ref;
   {
-    const Run run = run_extended(cur.base, cur.ext, deflections(cur.base, cur.rho), est);
+    const ExtendedSlipRun run =
+        run_extended_slip(cur.base, cur.ext, deflections_from_relative(cur.base, cur.rho), est);
     cur.rss = 0;
     for (std::size_t k = 0; k < n; ++k)
       cur.rss += (est.force[k] - run.force[k]) * (est.force[k] - run.force[k]);
@@ -962,14 +688,15 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
     dx.baseline_estimation_percent = percent(est.force, cur.rss);
   }
   if (o.baseline != "lugre") {
-    const std::vector<double> rho_v = estimate_rho(cur.base, cur.ext, val, nullptr);
+    const std::vector<double> rho_v =
+        estimate_relative_deflections(cur.base, cur.ext, val, nullptr);
     dx.baseline_evidence = evidence_of(cur.base, cur.ext, val, rho_v, nullptr);
   }
 
   const std::vector<Effect> pool = applicable(o, est);
   struct Tried {
     CandidateFit fit;
-    Fit result;
+    ExtendedSlipFit result;
   };
   auto try_candidates = [&](const State& s, const std::vector<Effect>& effects) {
     const ResidualEvidence ev = evidence_of(s.base, s.ext, est, s.rho, nullptr);
@@ -979,12 +706,12 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
       if (e == Effect::frictional_lag && s.ext.has(Effect::viscous) == false &&
           s.ext.has(Effect::stribeck) == false && s.ext.has(Effect::frictional_lag))
         continue;
-      ExtensionParameters<double> start = candidate_start(e, s.ext, ev, est, f0ref);
+      ExtensionParameters<double> start = extension_start(e, s.ext, ev, est, f0ref);
       Tried t;
       t.fit.effect = e;
       const auto t_start = std::chrono::steady_clock::now();
       try {
-        t.result = fit_extended(est, s.base, s.rho, start, false, o.max_iterations);
+        t.result = fit_extended_slip(est, s.base, s.rho, start, false, o.max_iterations);
       } catch (const std::exception& ex) {
         t.fit.verdict = std::string("fit failed: ") + ex.what();
         out.push_back(t);
@@ -1075,7 +802,8 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
         if (std::find(full.order.begin(), full.order.end(), Effect::viscous) == full.order.end())
           without.disable(Effect::viscous);
       }
-      Fit f = fit_extended(est, full.base, full.rho, without, false, o.max_iterations);
+      ExtendedSlipFit f =
+          fit_extended_slip(est, full.base, full.rho, without, false, o.max_iterations);
       const double v_without = extended_validation_percent(f.base, f.ext, val);
       double dbic = 0, req = 0;
       std::string verdict;
@@ -1108,9 +836,10 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
                    (e == Effect::viscous && full.order[j] == Effect::frictional_lag);
           if (!keep) sub.disable(e);
         }
-        Fit f = i + 1 == full.order.size()
-                    ? Fit{full.base, full.rho, full.ext, full.rss, true}
-                    : fit_extended(est, full.base, full.rho, sub, false, o.max_iterations);
+        ExtendedSlipFit f =
+            i + 1 == full.order.size()
+                ? ExtendedSlipFit{full.base, full.rho, full.ext, full.rss, true}
+                : fit_extended_slip(est, full.base, full.rho, sub, false, o.max_iterations);
         State st;
         st.base = f.base;
         st.rho = f.rho;
@@ -1146,7 +875,8 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
     f.estimation_before = percent(est.force, before.rss);
     f.estimation_after = percent(est.force, after.rss);
     // Evidence on the validation record, from the model before this finding.
-    const std::vector<double> rho_v = estimate_rho(before.base, before.ext, val, nullptr);
+    const std::vector<double> rho_v =
+        estimate_relative_deflections(before.base, before.ext, val, nullptr);
     const ResidualEvidence ev = evidence_of(before.base, before.ext, val, rho_v, nullptr);
     const EffectEvidence* sig = find_evidence(ev, e);
     f.evidence = {{"validation_residual", ev.to_json()},

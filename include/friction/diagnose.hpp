@@ -202,6 +202,13 @@ ResidualEvidence analyse_residual(const MaxwellSlipParameters<double>& base,
                                   const ExtensionParameters<double>& extensions,
                                   const Record& record);
 
+/// The pieces of `current` plus effect e's piece, started from the residual evidence `ev` of the
+/// current model on record r (the effect's regression coefficient, the wavelength of the best
+/// grid point, the lag of the cross-correlation); f0 is the reference force of the level pieces.
+/// `frictional-lag` brings a viscous companion when `current` has no viscous or Stribeck piece.
+ExtensionParameters<double> extension_start(Effect e, const ExtensionParameters<double>& current,
+                                            const ResidualEvidence& ev, const Record& r, double f0);
+
 /// Validation error (RSS/SSS %) of an extended Maxwell Slip model on a record, initial
 /// deflections estimated from the record.  `simulated` receives the free run when not null.
 double extended_validation_percent(const MaxwellSlipParameters<double>& base,

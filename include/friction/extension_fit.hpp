@@ -1,0 +1,78 @@
+// Fitting a Maxwell Slip model together with extension pieces of methods.md section 7
+// (extensions.hpp) to one record: the machinery that `diagnose` uses for every candidate and that
+// `identify --extensions` uses for the pieces a user asks for.
+//
+// Parameters.  theta = [log k_i (M), log Delta_i (M), the pieces' parameters in
+// ExtensionParameters::for_each_parameter order], and the relative initial deflections
+// rho_i = delta_i(0) / Delta_i in [-1, 1], estimated from the same record (methods.md 2: the
+// initial state is unknown on every record and is estimated the same way for every method).
+// Stiffness and threshold are log-parametrised, which keeps them positive without bounds; the
+// thresholds are boxed inside [q, L] (displacement resolution, largest travel) as NLR keeps them,
+// because an operator beyond the travel with a large initial deflection acts as a free offset.
+//
+// Solver.  Ceres Levenberg-Marquardt with automatic derivatives through
+// Extended<MaxwellSlip<Jet>> and simulate_extended (the discrete recursion is piecewise linear in
+// the states, so forward-mode derivatives are exact wherever they exist).  Extension parameters
+// are boxed (extension_parameter_bounds) to their physical domain, e.g. a stribeck_velocity
+// between 1e-6 and 10 times the largest speed in the record.
+#pragma once
+
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "friction/extensions.hpp"
+#include "friction/maxwell_slip.hpp"
+#include "friction/record.hpp"
+
+namespace friction {
+
+/// Free run of an extended Maxwell Slip model in double, with the regime of every sample (the
+/// context is built exactly as simulate_extended builds it; tests compare the two).
+struct ExtendedSlipRun {
+  std::vector<double> force;
+  std::vector<char> sliding;
+  std::vector<double> velocity, acceleration;  // of the (shifted) record
+};
+
+ExtendedSlipRun run_extended_slip(const MaxwellSlipParameters<double>& base,
+                                  const ExtensionParameters<double>& ext,
+                                  std::span<const double> initial, const Record& r);
+
+/// Box of one extension parameter during a fit (f0 the reference force, duration of the record,
+/// vmax its largest speed).
+struct ExtensionBounds {
+  double lower, upper;
+};
+
+ExtensionBounds extension_parameter_bounds(Effect e, std::string_view name, double f0,
+                                           double duration, double vmax);
+
+/// Result of fit_extended_slip: parameters, relative initial deflections and the RSS [N^2].
+struct ExtendedSlipFit {
+  MaxwellSlipParameters<double> base;
+  std::vector<double> rho;
+  ExtensionParameters<double> ext;
+  double rss = 0;
+  bool ok = false;
+};
+
+/// Fits theta and rho from the given start (see the header comment); `fix_theta` estimates the
+/// initial state only.  `ok` is false when Ceres found no usable solution (rss is then infinite).
+ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<double>& base0,
+                                  const std::vector<double>& rho0,
+                                  const ExtensionParameters<double>& ext0, bool fix_theta,
+                                  int max_iterations);
+
+/// delta_i(0) = rho_i Delta_i.
+std::vector<double> deflections_from_relative(const MaxwellSlipParameters<double>& base,
+                                              const std::vector<double>& rho);
+
+/// The initial state of a record for fixed parameters: the plain Maxwell Slip estimate
+/// (initial_state.hpp) as a start, refined through the extended model; never worse than its
+/// start.  `rss` receives the resulting RSS when not null.
+std::vector<double> estimate_relative_deflections(const MaxwellSlipParameters<double>& base,
+                                                  const ExtensionParameters<double>& ext,
+                                                  const Record& r, double* rss);
+
+}  // namespace friction
