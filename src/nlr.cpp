@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <sstream>
 
@@ -343,6 +344,51 @@ Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho,
   return fit;
 }
 
+// Levenberg-Marquardt moves rho only along its local descent, and a wrong initial state is then
+// compensated by biased thresholds: on the round-trip study (studies.md 1) the best fit's
+// concentrated cost was often 2-15 % above what the same thresholds gave with the initial state
+// that estimate_initial_deflections (initial_state.hpp, the routine validation uses; `thorough`
+// searches the initial state globally for fixed parameters) found for them, and those seeds
+// carried the intervals' misses (NLR coverage 31-36 of 40 per parameter before, 36-40 after).  So
+// the fit is re-polished from that initial state while it improves.
+void refine_initial_state(const Data& d, Fit& best, const NlrOptions& o, bool thorough,
+                          IdentificationReport& rep) {
+  const std::size_t m = best.s.size();
+  for (int pass = 0; pass < 3; ++pass) {
+    const std::vector<double> thr = d.sb.thresholds(best.s);
+    if (best.k.size() != static_cast<Eigen::Index>(m) || best.k.norm() == 0.0) return;
+    std::vector<double> guess(m);
+    for (std::size_t i = 0; i < m; ++i) guess[i] = best.rho[i] * thr[i];
+    const Eigen::MatrixXd filter = best.k;
+    const auto init = estimate_initial_deflections(
+        d.x, std::span<const double>(d.y.data(), static_cast<std::size_t>(d.y.size())), thr,
+        filter, guess, thorough ? InitialStateOptions{} : InitialStateOptions::quick());
+    std::vector<double> rho(m);
+    for (std::size_t i = 0; i < m; ++i) rho[i] = std::clamp(init[i] / thr[i], -1.0, 1.0);
+    if (rho == best.rho) return;
+    // Polish only from an initial state that is already better at the current thresholds by
+    // more than one unit of log-likelihood (2 sigma^2 of RSS; d.floor_percent / N is about one
+    // sigma^2 in these units): a smaller gain cannot move the parameters by a visible part of
+    // their standard errors, and the polish costs a local search.
+    Workspace ws;
+    const double gain = best.percent - percent_of(vp_evaluate(d, best.s, rho, false, ws).r);
+    if (!(gain > 2.0 * d.floor_percent / static_cast<double>(d.y.size()))) return;
+    const Fit f = local_search(d, best.s, rho, o, best.percent);
+    StartLog log;
+    log.operators = m;
+    log.kind = thorough ? "initial-state" : "initial-state-quick";
+    log.start_thresholds = thr;
+    log.start_percent = f.start_percent;
+    log.final_percent = f.percent;
+    log.final_thresholds = d.sb.thresholds(f.s);
+    log.distinct = false;
+    rep.starts.push_back(std::move(log));
+    ++rep.convergence.local_searches;
+    if (!(f.percent < best.percent * (1.0 - 1e-6))) return;
+    best = f;
+  }
+}
+
 std::vector<double> clamp_sorted(std::vector<double> t, double lo, double hi) {
   for (double& v : t) v = std::clamp(v, lo, hi);
   std::sort(t.begin(), t.end());
@@ -415,10 +461,52 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
                                std::min(best.percent, previous_percent));
     record(kind, thr, f);
   }
+  refine_initial_state(d, best, o, false, rep);
 
   // A fit already at the noise floor cannot be improved beyond chance, so the (costly) global
   // stage is skipped even when another start stalled elsewhere.
-  if (o.global_stage && minima.size() > 1 && !(best.percent <= d.floor_percent)) {
+  // Weak-operator relocation: a trapped fit often spends one operator on nothing (a threshold at
+  // the resolution with a tiny stiffness, seed 9 of studies.md 1) while the others share the
+  // work of one more.  The operator that carries the least of the sliding force (k_i Delta_i) is
+  // moved into the largest log-gap of the others' thresholds (or beyond the largest) and the fit
+  // re-polished; kept when it is better.  Skipped at the noise floor, and during the order
+  // selection, where the warm start from M - 1 (one threshold inserted in the largest gap) is
+  // the same move.
+  auto relocate_weakest = [&]() {
+    if (o.operators == 0 || m < 2 || best.percent <= d.floor_percent ||
+        best.k.size() != static_cast<Eigen::Index>(m))
+      return;
+    const std::vector<double> thr = d.sb.thresholds(best.s);
+    std::size_t weak = 0;
+    for (std::size_t i = 1; i < m; ++i)
+      if (best.k(static_cast<Eigen::Index>(i)) * thr[i] <
+          best.k(static_cast<Eigen::Index>(weak)) * thr[weak])
+        weak = i;
+    std::vector<double> others;
+    for (std::size_t i = 0; i < m; ++i)
+      if (i != weak) others.push_back(thr[i]);
+    others.push_back(std::min(sc.travel, others.back() * 4.0));
+    std::vector<double> moved(others.begin(), others.end() - 1);
+    std::size_t gap = 0;
+    double widest = 0;
+    for (std::size_t g = 0; g + 1 < others.size(); ++g)
+      if (others[g + 1] / others[g] > widest) widest = others[g + 1] / others[g], gap = g;
+    moved.push_back(std::sqrt(others[gap] * others[gap + 1]));
+    moved = clamp_sorted(moved, sc.q, sc.travel);
+    const Fit f = local_search(d, d.sb.coordinates(moved), start_rho(d, moved), o, best.percent);
+    record("relocated", moved, f);
+  };
+  relocate_weakest();
+  refine_initial_state(d, best, o, false, rep);
+
+  // Rounds: each new round starts NLopt from another seed with the best initial state so far,
+  // and runs only while the previous round improved the best fit by more than stall_tolerance;
+  // at a fixed M only (in the order selection every M has the warm start from M - 1 as well).
+  const int rounds = o.operators > 0 ? 3 : 1;
+  for (int round = 0; round < rounds && o.global_stage && minima.size() > 1 &&
+                      !(best.percent <= d.floor_percent);
+       ++round) {
+    const double before_round = best.percent;
     // The starts stalled in different minima: NLopt's controlled random search over the unit box
     // of s, on the concentrated cost with the best initial state so far, then a Ceres polish.
     const unsigned dim = static_cast<unsigned>(m);
@@ -431,7 +519,7 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
     // at every M, so it gets less.
     const int per_operator = o.operators > 0 ? 500 : 150;
     opt.set_maxeval(o.global_evaluations > 0 ? o.global_evaluations : per_operator * static_cast<int>(m));
-    nlopt::srand(o.seed);
+    nlopt::srand(o.seed + 7919u * static_cast<unsigned>(round));
     struct Ctx {
       const Data* d;
       std::vector<double> rho;
@@ -458,6 +546,10 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
     const Fit f = local_search(d, ctx.best_s, start_rho(d, thr), o,
                                std::min(best.percent, previous_percent));
     record("nlopt-crs2", thr, f);
+    refine_initial_state(d, best, o, false, rep);
+    relocate_weakest();
+    refine_initial_state(d, best, o, false, rep);
+    if (!(best.percent < before_round * (1.0 - o.stall_tolerance))) break;
   }
   return best;
 }
@@ -561,7 +653,10 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
     fits.push_back(std::move(fit));
   }
   rep.selection[best_index].selected = true;
-  const Fit& best = fits[best_index];
+  // The thorough initial-state refinement, once, for the selected M (it is the costly one: a
+  // global search of the initial state; the order comparison above does not need it).
+  Fit& best = fits[best_index];
+  refine_initial_state(d, best, o, true, rep);
 
   // The model: operators whose stiffness went to the bound 0 are removed.
   const std::vector<double> thr = d.sb.thresholds(best.s);

@@ -218,13 +218,14 @@ void print_and_check(const std::string& method, const StudyOutcome& o) {
         << " x the noise floor " << o.floor[s] << " %";
 }
 
-// DISABLED: the NLR and DNLRX round trips do not yet meet the coverage requirement of issue 3
-// (40 seeds, per parameter >= 90 %).  Measured at the last change of nlr.cpp: NLR 31-39 of 40 per
-// parameter (pooled 272/320), 3 seeds trapped in local minima (validation 2.2-11x the floor);
-// DNLRX 34-39 of 40 (threshold[3] 34, threshold[4] 35; validation at the floor on every seed).
-// They stay here, unchanged, to be run with --gtest_also_run_disabled_tests until the methods pass
-// them; they are not loosened to pass.
-TEST(MethodStudies, DISABLED_NlrRoundTripCoverageOnMaxwellSlipData) {
+// NLR and DNLRX round trips (issue 3: 40 seeds, per parameter >= 90 %, validation <= 1.2 x the
+// floor on every seed).  Measured at the change that made them pass (initial-state refinement,
+// weak-operator relocation and repeated global rounds in nlr.cpp; initial-state passes in
+// dnlrx_identification.cpp): NLR 36-40 of 40 per parameter (pooled 298/320), DNLRX 36-40 of 40
+// (pooled 528/560), validation 0.998-1.13 x the floor on every seed of both.  The narrowest
+// margins are threshold[3], threshold[4] (36/40, rms z 1.2): their intervals are still about 20 %
+// too narrow, which the 90 % rule tolerates but which a user should know (README).
+TEST(MethodStudies, NlrRoundTripCoverageOnMaxwellSlipData) {
   const AnyModel reference = reference_model("maxwell-slip", kRate);
   const auto truth =
       std::get<Extended<MaxwellSlip<double>>>(reference.variant()).base().parameters();
@@ -243,8 +244,7 @@ TEST(MethodStudies, DISABLED_NlrRoundTripCoverageOnMaxwellSlipData) {
   print_and_check("NLR", outcome);
 }
 
-// DISABLED for the reason given above the NLR case.
-TEST(MethodStudies, DISABLED_DnlrxRoundTripCoverageOnDnlrxData) {
+TEST(MethodStudies, DnlrxRoundTripCoverageOnDnlrxData) {
   const AnyModel reference = reference_model("dnlrx", kRate);
   const auto truth = std::get<Extended<Dnlrx<double>>>(reference.variant()).base().parameters();
   MethodOptions options;
