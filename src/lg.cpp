@@ -60,11 +60,8 @@ double weighted_quantile(const std::vector<double>& v, const std::vector<double>
 
 // Per-sample motion of the record (motion.hpp): sample 0 has dt = 0.
 std::vector<Motion<double>> motions_of(std::span<const double> time, std::span<const double> x) {
-  std::vector<Motion<double>> m(x.size(), Motion<double>{0.0, 0.0, 0.0});
-  for (std::size_t k = 1; k < x.size(); ++k) {
-    const double dt = time[k] - time[k - 1], dx = x[k] - x[k - 1];
-    m[k] = Motion<double>{dx, dx / dt, dt};
-  }
+  std::vector<Motion<double>> m(x.size());
+  for (std::size_t k = 0; k < x.size(); ++k) m[k] = motion_at(time, x, k);
   return m;
 }
 

@@ -287,14 +287,7 @@ Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic> dnlrx_regressor_matrix(
   Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic> phi(x.size(), state.row_size());
   std::vector<T> row(state.row_size());
   for (std::size_t k = 0; k < x.size(); ++k) {
-    Motion<T> m{T(0), T(0), T(0), level.empty() ? T(1) : level[k]};
-    if (k > 0) {
-      const double dt = time[k] - time[k - 1];
-      m.dx = x[k] - x[k - 1];
-      m.dt = T(dt);
-      m.velocity = m.dx / dt;
-    }
-    state.advance(m);
+    state.advance(motion_at(time, x, k, level.empty() ? T(1) : level[k]));
     state.row(row);
     for (std::size_t c = 0; c < row.size(); ++c)
       phi(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(c)) = row[c];

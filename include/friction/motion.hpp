@@ -12,6 +12,9 @@
 // `differentiator.hpp` for the smoothing option used on noisy records.
 #pragma once
 
+#include <cstddef>
+#include <span>
+
 namespace friction {
 
 template <typename T>
@@ -23,5 +26,22 @@ struct Motion {
   /// 1 is the nominal model.  Models scale their slip forces (thresholds, s(v), g(v)) by it.
   T level = T(1);
 };
+
+/// The Motion of sample k of a record (displacement x at `time`), with slip-force level `level`:
+/// the increment from sample k-1 and the backward-difference velocity above; sample 0 is the
+/// initial state (dx = v = dt = 0).  Every routine that steps a model over a record builds its
+/// motions here, so that simulation, identification and tests see the same numbers.
+template <typename T>
+Motion<T> motion_at(std::span<const double> time, std::span<const T> x, std::size_t k,
+                    T level = T(1)) {
+  Motion<T> m{T(0), T(0), T(0), level};
+  if (k > 0) {
+    const double dt = time[k] - time[k - 1];
+    m.dx = x[k] - x[k - 1];
+    m.dt = T(dt);
+    m.velocity = m.dx / dt;
+  }
+  return m;
+}
 
 }  // namespace friction

@@ -28,16 +28,8 @@ void simulate(Model& model, std::span<const double> time, std::span<const T> x, 
                  "simulate: time, displacement and force must have the same length");
   FRICTION_CHECK(level.empty() || level.size() == x.size(),
                  "simulate: level must be empty or as long as the record");
-  for (std::size_t k = 0; k < x.size(); ++k) {
-    Motion<T> m{T(0), T(0), T(0), level.empty() ? T(1) : level[k]};
-    if (k > 0) {
-      const double dt = time[k] - time[k - 1];
-      m.dx = x[k] - x[k - 1];
-      m.dt = T(dt);
-      m.velocity = m.dx / dt;
-    }
-    force[k] = model.step(m);
-  }
+  for (std::size_t k = 0; k < x.size(); ++k)
+    force[k] = model.step(motion_at(time, x, k, level.empty() ? T(1) : level[k]));
 }
 
 /// Convenience overload returning the simulated force.

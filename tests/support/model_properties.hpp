@@ -104,11 +104,10 @@ template <class Model>
 void expect_step_does_not_allocate(Model& model, const std::vector<double>& time,
                                    const std::vector<double>& x) {
   using T = typename Model::Scalar;
+  std::vector<T> xs(x.begin(), x.end());
   std::vector<Motion<T>> motions(x.size());
-  for (std::size_t k = 1; k < x.size(); ++k) {
-    const double dt = time[k] - time[k - 1];
-    motions[k] = Motion<T>{T(x[k] - x[k - 1]), T((x[k] - x[k - 1]) / dt), T(dt), T(1)};
-  }
+  for (std::size_t k = 0; k < x.size(); ++k)
+    motions[k] = motion_at(std::span<const double>(time), std::span<const T>(xs), k);
   model.reset();
   T sum(0);
   AllocationCounter counter;
