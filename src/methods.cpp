@@ -36,10 +36,84 @@ Json values_json(const std::vector<double>& values, const char* unit) {
 
 }  // namespace
 
+namespace {
+
+IdentifiedModel identify_base(const std::string& type, const Record& r, const MethodOptions& o);
+
+// The restart of a Maxwell Slip base keeps the user's choice of M (or of its largest value).
+ExtensionFitOptions fit_options(const MethodOptions& o) {
+  ExtensionFitOptions f = o.extension_fit;
+  if (f.operators == 0) f.operators = o.operators;
+  if (f.max_operators == 0) f.max_operators = o.max_operators;
+  f.global_stage = o.global_stage;
+  return f;
+}
+
+// The base's report updated with the pieces: refitted figures, the pieces' parameters appended
+// ("<effect>.<name>"), warnings and the correlation of the new parameter list.
+IdentifiedModel with_extensions(IdentifiedModel base, const Record& r, const MethodOptions& o) {
+  ExtensionIdentification x = identify_extensions(
+      base.model, r, base.report.estimation_simulated,
+      base.model.type() == "lugre" ? base.initial_state["values"].get<std::vector<double>>()
+                                   : base.report.initial_deflections,
+      o.extensions, fit_options(o));
+  IdentifiedModel m{x.model, std::move(base.report), x.initial_state, Json()};
+  IdentificationReport& rep = m.report;
+  // The base's own warnings describe its fit before the pieces were added.
+  for (auto& w : rep.warnings)
+    w = method_name(m.model.type()) + " base, before the extensions: " + w;
+  Eigen::MatrixXd base_corr = rep.correlation;
+  if (!x.base_held) {
+    // The Maxwell Slip parameters were refitted: their estimates replace the NLR ones.
+    rep.parameters = x.base_parameters;
+    base_corr.resize(0, 0);
+  }
+  const auto nb = static_cast<Eigen::Index>(rep.parameters.size());
+  for (const auto& e : x.estimates) {
+    ParameterEstimate p;
+    p.name = std::string(effect_name(e.effect)) + "." + e.name;
+    p.unit = e.unit;
+    p.value = e.value;
+    p.standard_error = e.standard_error;
+    p.lower95 = e.value - 1.96 * e.standard_error;
+    p.upper95 = e.value + 1.96 * e.standard_error;
+    rep.parameters.push_back(p);
+  }
+  const auto nt = static_cast<Eigen::Index>(rep.parameters.size());
+  Eigen::MatrixXd corr = Eigen::MatrixXd::Identity(nt, nt);
+  if (x.base_held) {
+    if (base_corr.rows() == nb && base_corr.cols() == nb) corr.topLeftCorner(nb, nb) = base_corr;
+    const Eigen::Index ne = nt - nb;
+    if (x.correlation_matrix.rows() == ne && x.correlation_matrix.cols() == ne)
+      corr.bottomRightCorner(ne, ne) = x.correlation_matrix;
+  } else if (x.correlation_matrix.rows() == nt && x.correlation_matrix.cols() == nt) {
+    corr = x.correlation_matrix;
+  }
+  rep.correlation = corr;
+  rep.estimation = x.estimation;
+  rep.estimation_simulated = x.simulated;
+  if (m.model.type() != "lugre") rep.initial_deflections = x.initial_values;
+  for (auto& w : x.warnings) rep.warnings.push_back(std::move(w));
+  rep.seconds += x.seconds;
+  m.extensions = x.to_json();
+  return m;
+}
+
+}  // namespace
+
 IdentifiedModel identify_model(const std::string& type_or_name, const Record& r,
                                const MethodOptions& o) {
   require_force(r);
   const std::string type = method_type(type_or_name);
+  if (o.extensions.empty()) return identify_base(type, r, o);
+  // A request the base cannot carry fails before the (long) base identification.
+  check_extension_request(type, o.extensions, r);
+  return with_extensions(identify_base(type, r, o), r, o);
+}
+
+namespace {
+
+IdentifiedModel identify_base(const std::string& type, const Record& r, const MethodOptions& o) {
   const ExtensionParameters<double> none;
   if (type == "maxwell-slip") {
     NlrOptions n;
@@ -50,7 +124,7 @@ IdentifiedModel identify_model(const std::string& type_or_name, const Record& r,
     NlrResult res = identify_maxwell_slip(r.time, r.displacement, r.force, n);
     Json init = values_json(res.report.initial_deflections, "m");
     return {AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(res.parameters), none)),
-            std::move(res.report), std::move(init)};
+            std::move(res.report), std::move(init), Json()};
   }
   if (type == "dnlrx") {
     DnlrxOptions d;
@@ -63,7 +137,7 @@ IdentifiedModel identify_model(const std::string& type_or_name, const Record& r,
     DnlrxResult res = identify_dnlrx(r.time, r.displacement, r.force, d);
     Json init = values_json(res.report.initial_deflections, "m");
     return {AnyModel(Extended<Dnlrx<double>>(Dnlrx<double>(res.parameters), none)),
-            std::move(res.report), std::move(init)};
+            std::move(res.report), std::move(init), Json()};
   }
   if (type == "lugre") {
     LgOptions l;
@@ -72,11 +146,13 @@ IdentifiedModel identify_model(const std::string& type_or_name, const Record& r,
     LgResult res = identify_lugre(r.time, r.displacement, r.force, l);
     Json init = values_json({res.initial_state}, "m");
     return {AnyModel(Extended<LuGre<double>>(LuGre<double>(res.parameters), none)),
-            std::move(res.report), std::move(init)};
+            std::move(res.report), std::move(init), Json()};
   }
   throw InvalidParameter("identify: model type '" + type +
                          "' cannot be identified yet (lugre, maxwell-slip and dnlrx can)");
 }
+
+}  // namespace
 
 Validation validate_model(const AnyModel& model, const Record& r) {
   require_force(r);
@@ -110,6 +186,15 @@ Validation validate_model(const AnyModel& model, const Record& r) {
             v.initial_state = "estimated";
             return;
           }
+        }
+        if constexpr (std::is_same_v<Base, MaxwellSlip<double>> ||
+                      std::is_same_v<Base, Dnlrx<double>> || std::is_same_v<Base, LuGre<double>>) {
+          // Pieces on a base with a state estimator: the state is estimated through them.
+          ExtendedFreeRun run = free_run_extended(model, r);
+          v.simulated = std::move(run.simulated);
+          v.initial_state_values = values_json(run.initial, "m");
+          v.initial_state = "estimated";
+          return;
         }
         AnyModel copy = model;
         v.simulated = copy.simulate(r);

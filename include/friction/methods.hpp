@@ -8,8 +8,16 @@
 // (methods.md 2, 6): the initial state is estimated from that record (deflections delta_i(0) for
 // the slip models, z0 for LuGre; nothing else is re-estimated), then the model runs free on the
 // record's displacement and every sample counts in the error.  Models without an estimator for
-// their state (GMS, the static curve, models carrying extension pieces) start from rest, and the
-// result says so (`initial_state: "zero"`).
+// their state (GMS, the static curve, with or without pieces) start from rest, and the result
+// says so (`initial_state: "zero"`).  Maxwell Slip, DNLRX and LuGre models carrying extension
+// pieces have their initial state estimated through the extended model (free_run_extended,
+// extension_identification.hpp).
+//
+// Extensions.  `MethodOptions::extensions` asks for pieces of methods.md section 7: the base is
+// identified by its method, then the pieces are estimated on the same record
+// (identify_extensions, extension_identification.hpp; every base is refitted jointly with them,
+// LuGre and DNLRX after a first fit with the base held).  The returned model carries the pieces, its
+// report the refitted figures, and `extensions` the pieces' report.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -17,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "friction/extension_identification.hpp"
 #include "friction/identification.hpp"
 #include "friction/metrics.hpp"
 #include "friction/model_io.hpp"
@@ -34,12 +43,14 @@ inline constexpr const char* kIdentifiableTypes[] = {"lugre", "maxwell-slip", "d
 
 /// Options common to the methods (0 / negative: the method's default).
 struct MethodOptions {
-  std::size_t max_operators = 0;  ///< NLR and DNLRX: largest M tried by the order selection
-  std::size_t operators = 0;      ///< NLR and DNLRX: fit this M only
-  long spring_order = -1;         ///< DNLRX: >= 0 fixes the spring-filter order n
-  long input_order = -1;          ///< DNLRX: >= 0 fixes the input-filter order nx
-  bool global_stage = true;       ///< NLopt global stage where the method has one
-  unsigned seed = 1;              ///< seeds of the global stages (results are reproducible)
+  std::size_t max_operators = 0;   ///< NLR and DNLRX: largest M tried by the order selection
+  std::size_t operators = 0;       ///< NLR and DNLRX: fit this M only
+  long spring_order = -1;          ///< DNLRX: >= 0 fixes the spring-filter order n
+  long input_order = -1;           ///< DNLRX: >= 0 fixes the input-filter order nx
+  bool global_stage = true;        ///< NLopt global stage where the method has one
+  unsigned seed = 1;               ///< seeds of the global stages (results are reproducible)
+  std::vector<Effect> extensions;  ///< pieces of methods.md 7 to identify with the base
+  ExtensionFitOptions extension_fit;
 };
 
 /// An identified model and everything the method reports about it.
@@ -47,6 +58,9 @@ struct IdentifiedModel {
   AnyModel model;
   IdentificationReport report;
   Json initial_state;  ///< {"kind": "estimated", "values": [...], "unit": "m"}
+  /// The pieces' report (ExtensionIdentification::to_json) when extensions were asked for; null
+  /// otherwise.
+  Json extensions;
 };
 
 /// Identifies a model of `type` on the record (which must carry a force).  Throws

@@ -21,7 +21,14 @@ struct MethodCliOptions {
   bool no_global = false;
   unsigned seed = 1;
   MethodOptions method() const {
-    return {max_operators, operators, spring_order, input_order, !no_global, seed};
+    MethodOptions m;
+    m.max_operators = max_operators;
+    m.operators = operators;
+    m.spring_order = spring_order;
+    m.input_order = input_order;
+    m.global_stage = !no_global;
+    m.seed = seed;
+    return m;
   }
 };
 
@@ -148,6 +155,7 @@ void print_report(std::ostream& os, const IdentifiedModel& m) {
 
 struct IdentifyOptions {
   std::string model;
+  std::vector<std::string> extensions;
   std::string data, validate;
   InputOptions input;
   OutputOptions output;
@@ -155,13 +163,17 @@ struct IdentifyOptions {
 };
 
 int run_identify(const IdentifyOptions& o) {
+  // A bad --extension is bad usage: reported before any file is read.
+  MethodOptions method = o.method.method();
+  method.extensions = parse_extension_list(o.extensions);
   Records rs = load_records(o.data, o.validate, 0.3, /*hold_out_when_missing=*/false, o.input);
   Json doc = new_document("identify");
   add_warnings(doc, rs.warnings);
   doc["data"] = rs.data;
   Progress progress;
-  progress.update("identifying " + method_name(method_type(o.model)) + " on " + o.data + " ...");
-  IdentifiedModel m = identify_model(o.model, rs.estimation, o.method.method());
+  progress.update("identifying " + method_name(method_type(o.model)) + " on " + o.data +
+                  (method.extensions.empty() ? "" : " with extensions") + " ...");
+  IdentifiedModel m = identify_model(o.model, rs.estimation, method);
   progress.done();
   add_warnings(doc, m.report.warnings);
   doc["method"] = method_name(m.model.type());
@@ -172,6 +184,7 @@ int run_identify(const IdentifyOptions& o) {
   doc["estimation"]["noise"] = {{"sigma", m.report.noise_sigma},
                                 {"floor_percent", m.report.noise_floor_percent}};
   doc["identification"] = report_to_json(m.report);
+  if (!m.extensions.is_null()) doc["extensions"] = m.extensions;
   doc["seconds"] = m.report.seconds;
   std::optional<Validation> val;
   if (rs.has_validation) {
@@ -186,6 +199,17 @@ int run_identify(const IdentifyOptions& o) {
   os << method_name(m.model.type()) << " (" << m.model.type() << ") identified on " << o.data
      << " (" << rs.estimation.size() << " samples) in " << fixed(m.report.seconds, 2) << " s\n";
   print_report(os, m);
+  if (!m.extensions.is_null()) {
+    const Json& x = m.extensions;
+    os << "  extensions ";
+    for (std::size_t i = 0; i < x["order"].size(); ++i)
+      os << (i ? ", " : "") << x["order"][i].get<std::string>();
+    os << " (base " << x["base"].get<std::string>() << "): estimation RSS/SSS "
+       << fmt(x["estimation_before_percent"].get<double>()) << " % without them, "
+       << fmt(x["estimation_after_percent"].get<double>()) << " % with them\n";
+    for (const auto& name : x["no_evidence"])
+      os << "  the record gives no evidence of " << name.get<std::string>() << "\n";
+  }
   print_errors(os, "estimation", m.report.estimation, m.report.noise_floor_percent);
   if (val) print_errors(os, "validation", val->errors, val->noise_floor_percent);
   if (!doc["warnings"].empty()) os << "  " << doc["warnings"].size() << " warning(s), on stderr\n";
@@ -319,6 +343,10 @@ Action register_identify(CLI::App& root) {
   c->add_option("--model", o->model, "lugre (LG), maxwell-slip (NLR) or dnlrx (DNLRX)")->required();
   c->add_option("--data", o->data, "Estimation record (CSV)")->required();
   c->add_option("--validate", o->validate, "Validation record (CSV)");
+  c->add_option("--extension", o->extensions,
+                "Extension pieces to identify with the model (repeatable or a comma list): " +
+                    extension_names())
+      ->delimiter(',');
   add_method_options(*c, o->method);
   add_input_options(*c, o->input);
   add_output_options(*c, o->output);

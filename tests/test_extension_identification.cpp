@@ -1,0 +1,337 @@
+// identify_model with requested extension pieces (extension_identification.hpp): records with an
+// effect written by its own formula (diagnose_support.hpp, on a 4-operator Maxwell Slip system),
+// identified with that effect's piece, must give back its parameter and a lower estimation error;
+// a piece the record does not hold must come out near zero and be reported as without evidence;
+// a saved model must validate to the same error; impossible requests must fail clearly.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "diagnose_support.hpp"
+#include "friction/extension_identification.hpp"
+#include "friction/methods.hpp"
+
+namespace friction {
+namespace {
+
+using testing::Excitation;
+using testing::Injected;
+using testing::make_clean;
+using testing::with_noise;
+
+constexpr double kSigma = 2e-3;         // N, force noise
+constexpr std::size_t kSamples = 4000;  // 4 s at 1 kHz
+
+Record record_with(Injected e, double magnitude, unsigned seed = 7) {
+  return with_noise(make_clean(e, magnitude, Excitation{}, kSamples, 0.0), kSigma, seed);
+}
+
+MethodOptions options(std::vector<Effect> effects) {
+  MethodOptions o;
+  o.operators = 4;  // the system's M: keeps the tests short
+  o.global_stage = false;
+  o.extensions = std::move(effects);
+  return o;
+}
+
+double parameter(const IdentifiedModel& m, const std::string& effect, const std::string& name) {
+  return m.extensions.at("pieces").at(effect).at(name).at("value").get<double>();
+}
+double standard_error(const IdentifiedModel& m, const std::string& effect,
+                      const std::string& name) {
+  return m.extensions.at("pieces").at(effect).at(name).at("standard_error").get<double>();
+}
+bool no_evidence(const IdentifiedModel& m, const std::string& effect) {
+  for (const auto& e : m.extensions.at("no_evidence"))
+    if (e.get<std::string>() == effect) return true;
+  return false;
+}
+double before(const IdentifiedModel& m) {
+  return m.extensions.at("estimation_before_percent").get<double>();
+}
+
+// The recovered value within `tolerance` (relative), the error at least halved, a standard error
+// that covers the truth within 4 of them, and the piece supported by the record.
+void expect_recovered(const IdentifiedModel& m, const std::string& effect, const std::string& name,
+                      double truth, double tolerance) {
+  const double v = parameter(m, effect, name);
+  const double se = standard_error(m, effect, name);
+  EXPECT_NEAR(v, truth, tolerance * std::abs(truth)) << effect << "." << name;
+  EXPECT_GT(se, 0.0) << "no standard error for " << effect << "." << name;
+  EXPECT_LT(std::abs(v - truth), 4 * se + 0.02 * std::abs(truth)) << "se " << se;
+  EXPECT_LT(m.report.estimation.rss_sss_percent, 0.5 * before(m));
+  EXPECT_FALSE(no_evidence(m, effect));
+  // The piece is in the model itself, with the same value.
+  bool found = false;
+  m.model.extensions().for_each_parameter([&](Effect e, std::string_view n, const double& x) {
+    if (effect_name(e) == effect && n == name) {
+      found = true;
+      EXPECT_DOUBLE_EQ(x, v);
+    }
+  });
+  EXPECT_TRUE(found);
+}
+
+TEST(ExtensionIdentification, ViscousOnMaxwellSlipIsRecovered) {
+  const IdentifiedModel m = identify_model("maxwell-slip", record_with(Injected::viscous, 40.0),
+                                           options({Effect::viscous}));
+  expect_recovered(m, "viscous", "viscous", 40.0, 0.10);
+  EXPECT_EQ(m.extensions.at("base").get<std::string>(), "refitted jointly");
+}
+
+TEST(ExtensionIdentification, OffsetOnMaxwellSlipIsRecovered) {
+  const IdentifiedModel m = identify_model("maxwell-slip", record_with(Injected::offset, 0.02),
+                                           options({Effect::offset}));
+  expect_recovered(m, "offset", "offset", 0.02, 0.10);
+}
+
+TEST(ExtensionIdentification, MassOnMaxwellSlipWithinTenPercent) {
+  const IdentifiedModel m = identify_model("maxwell-slip", record_with(Injected::inertia, 3.0),
+                                           options({Effect::inertia}));
+  expect_recovered(m, "inertia", "mass", 3.0, 0.10);
+}
+
+TEST(ExtensionIdentification, StribeckOnMaxwellSlipIsRecovered) {
+  // Injected: level 1 + 0.3 exp(-(v / 0.2 mm/s)^2), so static / F0 = 1.3 whatever F0 the refit
+  // settles at.
+  const IdentifiedModel m = identify_model("maxwell-slip", record_with(Injected::stribeck, 0.3),
+                                           options({Effect::stribeck}));
+  const auto& ext = std::get<Extended<MaxwellSlip<double>>>(m.model.variant());
+  const double f0 = ext.base().parameters().sliding_force();
+  EXPECT_NEAR(parameter(m, "stribeck", "static") / f0, 1.3, 0.1 * 0.3);
+  EXPECT_NEAR(parameter(m, "stribeck", "stribeck_velocity"), 2e-4, 0.25 * 2e-4);
+  EXPECT_LT(m.report.estimation.rss_sss_percent, 0.5 * before(m));
+  EXPECT_FALSE(no_evidence(m, "stribeck"));
+}
+
+TEST(ExtensionIdentification, TwoPiecesTogether) {
+  // Viscous and offset written into one record.
+  testing::Clean c = make_clean(Injected::viscous, 40.0, Excitation{}, kSamples, 0.0);
+  for (double& f : c.force) f += 0.02;
+  const IdentifiedModel m = identify_model("maxwell-slip", with_noise(c, kSigma, 3),
+                                           options({Effect::offset, Effect::viscous}));
+  EXPECT_NEAR(parameter(m, "viscous", "viscous"), 40.0, 4.0);
+  EXPECT_NEAR(parameter(m, "offset", "offset"), 0.02, 0.002);
+  EXPECT_EQ(m.extensions.at("order").size(), 2u);
+}
+
+TEST(ExtensionIdentification, LevelAndAddedPiecesReachTheNoiseFloor) {
+  // A Stribeck level and an offset: the NLR base fitted to this force is distorted enough that a
+  // local refit from it stalls near 0.1 % (measured); the restart from the corrected force
+  // reaches the noise floor.
+  testing::Clean c = make_clean(Injected::stribeck, 0.3, Excitation{}, kSamples, 0.0);
+  for (double& f : c.force) f += 0.02;
+  const IdentifiedModel m = identify_model("maxwell-slip", with_noise(c, kSigma, 5),
+                                           options({Effect::stribeck, Effect::offset}));
+  EXPECT_LT(m.report.estimation.rss_sss_percent, 1.5 * m.report.noise_floor_percent);
+  EXPECT_NEAR(parameter(m, "offset", "offset"), 0.02, 0.002);
+  const auto& ext = std::get<Extended<MaxwellSlip<double>>>(m.model.variant());
+  EXPECT_NEAR(parameter(m, "stribeck", "static") / ext.base().parameters().sliding_force(), 1.3,
+              0.03);
+}
+
+TEST(ExtensionIdentification, AbsentEffectComesOutNearZeroWithoutEvidence) {
+  const IdentifiedModel m = identify_model("maxwell-slip", record_with(Injected::none, 0.0, 11),
+                                           options({Effect::offset}));
+  const double v = parameter(m, "offset", "offset");
+  // Near zero on the scale of the sliding force (0.42 N) and of the noise.
+  EXPECT_LT(std::abs(v), 2e-3);
+  EXPECT_TRUE(no_evidence(m, "offset"));
+  bool warned = false;
+  for (const auto& w : m.report.warnings)
+    warned = warned || w.find("the record gives no evidence of offset") != std::string::npos;
+  EXPECT_TRUE(warned);
+  // The error barely moves: there was nothing to explain.
+  EXPECT_GT(m.report.estimation.rss_sss_percent, 0.8 * before(m));
+}
+
+TEST(ExtensionIdentification, PresentEffectIsNotMistakenForAbsent) {
+  // Same request on a record that has the offset: the warning must not appear (the test above
+  // could otherwise pass with a warning that is always given).
+  const IdentifiedModel m = identify_model("maxwell-slip", record_with(Injected::offset, 0.01, 11),
+                                           options({Effect::offset}));
+  EXPECT_FALSE(no_evidence(m, "offset"));
+}
+
+TEST(ExtensionIdentification, OffsetOnDnlrxRefittedAndHeld) {
+  const Record r = record_with(Injected::offset, 0.02);
+  MethodOptions o = options({Effect::offset});
+  o.spring_order = 0;
+  o.input_order = 0;
+  const IdentifiedModel joint = identify_model("dnlrx", r, o);
+  EXPECT_EQ(joint.model.type(), "dnlrx");
+  EXPECT_EQ(joint.extensions.at("base").get<std::string>(), "refitted jointly");
+  expect_recovered(joint, "offset", "offset", 0.02, 0.10);
+  // With the base held at its DNLRX estimate (fitted to the biased force) the offset is only
+  // partly recovered, and the report says the base was held.
+  o.extension_fit.refit_base = false;
+  const IdentifiedModel held = identify_model("dnlrx", r, o);
+  EXPECT_EQ(held.extensions.at("base").get<std::string>(), "held");
+  bool said = false;
+  for (const auto& w : held.report.warnings) said = said || w.find("held") != std::string::npos;
+  EXPECT_TRUE(said);
+  EXPECT_GT(parameter(held, "offset", "offset"), 0.0);
+  std::printf(
+      "dnlrx + offset 0.02 N: before %.4g %%; held %.4g %%, offset %.4g N; joint %.4g %%, "
+      "offset %.4g N\n",
+      before(joint), held.report.estimation.rss_sss_percent, parameter(held, "offset", "offset"),
+      joint.report.estimation.rss_sss_percent, parameter(joint, "offset", "offset"));
+  EXPECT_LE(joint.report.estimation.rss_sss_percent, held.report.estimation.rss_sss_percent);
+  const Validation v = validate_model(AnyModel::from_json(held.model.to_json()), r);
+  EXPECT_NEAR(v.errors.rss_sss_percent, held.report.estimation.rss_sss_percent,
+              1e-9 * held.report.estimation.rss_sss_percent);
+}
+
+TEST(ExtensionIdentification, OffsetOnLuGre) {
+  // A LuGre system (the reference of `generate`: Fc 1.5 N, Fs 2 N, vs 1 mm/s) driven by the
+  // two-tone excitation at 200 um, plus an offset of 0.1 N written here.
+  testing::Excitation ex;
+  ex.amplitude = 200e-6;
+  testing::Clean c = testing::base_clean(ex, kSamples, 0.0);
+  Record plain;
+  plain.time = c.time;
+  plain.displacement = c.x;
+  AnyModel truth = reference_model("lugre", 1000.0);
+  c.force = truth.simulate(plain);
+  for (double& f : c.force) f += 0.1;
+  const Record r = with_noise(c, 5e-3, 21);
+  const auto t0 = std::chrono::steady_clock::now();
+  const IdentifiedModel m = identify_model("lugre", r, options({Effect::offset}));
+  std::printf("lugre + offset: %.2f s, before %.4g %%, after %.4g %%, offset %.5g +- %.3g N\n",
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+              before(m), m.report.estimation.rss_sss_percent, parameter(m, "offset", "offset"),
+              standard_error(m, "offset", "offset"));
+  EXPECT_EQ(m.model.type(), "lugre");
+  EXPECT_EQ(m.extensions.at("base").get<std::string>(), "refitted jointly");
+  expect_recovered(m, "offset", "offset", 0.1, 0.10);
+  const Validation v = validate_model(AnyModel::from_json(m.model.to_json()), r);
+  EXPECT_NEAR(v.errors.rss_sss_percent, m.report.estimation.rss_sss_percent,
+              1e-9 * m.report.estimation.rss_sss_percent);
+}
+
+TEST(ExtensionIdentification, SavedModelValidatesToTheSameError) {
+  const Record r = record_with(Injected::inertia, 3.0);
+  const IdentifiedModel m = identify_model("maxwell-slip", r, options({Effect::inertia}));
+  const AnyModel loaded = AnyModel::from_json(m.model.to_json());
+  ASSERT_TRUE(loaded.extensions().inertia.has_value());
+  const Validation v = validate_model(loaded, r);
+  EXPECT_EQ(v.initial_state, "estimated");
+  EXPECT_NEAR(v.errors.rss_sss_percent, m.report.estimation.rss_sss_percent,
+              1e-9 * m.report.estimation.rss_sss_percent);
+}
+
+TEST(ExtensionIdentification, NormalLoadWithoutNormalForceIsADataError) {
+  const Record r = record_with(Injected::none, 0.0);
+  EXPECT_THROW(identify_model("maxwell-slip", r, options({Effect::normal_load})), DataError);
+}
+
+TEST(ExtensionIdentification, DuplicatedBaseTermsAreRefused) {
+  const Record r = record_with(Injected::none, 0.0);
+  EXPECT_THROW(check_extension_request("lugre", {Effect::viscous}, r), InvalidParameter);
+  EXPECT_THROW(check_extension_request("lugre", {Effect::stribeck}, r), InvalidParameter);
+  EXPECT_THROW(check_extension_request("dnlrx", {Effect::viscous}, r), InvalidParameter);
+  EXPECT_THROW(check_extension_request("dnlrx", {Effect::frictional_lag}, r), InvalidParameter);
+  EXPECT_NO_THROW(check_extension_request("dnlrx", {Effect::stribeck, Effect::frictional_lag}, r));
+  EXPECT_NO_THROW(check_extension_request("maxwell-slip", {Effect::viscous}, r));
+  EXPECT_THROW(identify_model("lugre", r, options({Effect::viscous})), InvalidParameter);
+}
+
+TEST(ExtensionIdentification, ParsesNamesAndCommaLists) {
+  const std::vector<Effect> e =
+      parse_extension_list({"viscous,offset", "inertia", "offset", "position-dependence"});
+  ASSERT_EQ(e.size(), 4u);
+  EXPECT_EQ(e[0], Effect::viscous);
+  EXPECT_EQ(e[1], Effect::offset);
+  EXPECT_EQ(e[2], Effect::inertia);
+  EXPECT_EQ(e[3], Effect::position_dependence);
+  try {
+    parse_extension_list({"viscus"});
+    FAIL() << "no exception";
+  } catch (const InvalidParameter& x) {
+    const std::string what = x.what();
+    EXPECT_NE(what.find("viscus"), std::string::npos);
+    EXPECT_NE(what.find("normal-load"), std::string::npos);
+    EXPECT_NE(what.find("frictional-lag"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace friction
+
+namespace friction {
+namespace {
+
+// The measurement behind the choice of ExtensionOrder::sequential (extension_identification.hpp):
+// run with --gtest_also_run_disabled_tests.
+TEST(ExtensionIdentification, DISABLED_MeasureSequentialAgainstJoint) {
+  struct Pair {
+    const char* name;
+    Injected a, b;
+    double ma, mb;
+    std::vector<Effect> effects;
+  };
+  const std::vector<Pair> pairs = {
+      {"viscous + offset",
+       Injected::viscous,
+       Injected::offset,
+       40.0,
+       0.02,
+       {Effect::viscous, Effect::offset}},
+      {"stribeck + inertia",
+       Injected::stribeck,
+       Injected::inertia,
+       0.3,
+       3.0,
+       {Effect::stribeck, Effect::inertia}},
+      {"asymmetry + viscous",
+       Injected::asymmetry,
+       Injected::viscous,
+       0.1,
+       40.0,
+       {Effect::asymmetry, Effect::viscous}},
+      {"drift + offset",
+       Injected::drift,
+       Injected::offset,
+       0.05,
+       0.02,
+       {Effect::drift, Effect::offset}},
+      {"position + inertia",
+       Injected::position,
+       Injected::inertia,
+       0.05,
+       3.0,
+       {Effect::position_dependence, Effect::inertia}},
+      {"stribeck + offset",
+       Injected::stribeck,
+       Injected::offset,
+       0.3,
+       0.02,
+       {Effect::stribeck, Effect::offset}},
+  };
+  for (const auto& p : pairs) {
+    // The two effects together: the second one's change of the force added to the first's record.
+    const testing::Clean none = make_clean(Injected::none, 0, Excitation{}, kSamples, 0.0);
+    testing::Clean c = make_clean(p.a, p.ma, Excitation{}, kSamples, 0.0);
+    const testing::Clean second = make_clean(p.b, p.mb, Excitation{}, kSamples, 0.0);
+    for (std::size_t k = 0; k < kSamples; ++k) c.force[k] += second.force[k] - none.force[k];
+    const Record r = with_noise(c, kSigma, 5);
+    for (int mode = 0; mode < 4; ++mode) {
+      MethodOptions o = options(p.effects);
+      o.extension_fit.order = mode % 2 ? ExtensionOrder::joint : ExtensionOrder::sequential;
+      o.extension_fit.restart_base = mode < 2;
+      const auto t0 = std::chrono::steady_clock::now();
+      const IdentifiedModel m = identify_model("maxwell-slip", r, o);
+      std::printf("%-22s %-10s %-10s before %.4g %%  after %.4g %%  (floor %.4g %%)  %.2f s\n",
+                  p.name, mode % 2 ? "joint" : "sequential", mode < 2 ? "restart" : "no-restart",
+                  before(m), m.report.estimation.rss_sss_percent, m.report.noise_floor_percent,
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    }
+  }
+}
+
+}  // namespace
+}  // namespace friction
