@@ -219,13 +219,17 @@ Json errors_to_json(const ErrorMetrics& e) {
 Json report_to_json(const IdentificationReport& rep) {
   Json j;
   Json params = Json::array();
-  for (const auto& p : rep.parameters)
+  // A standard error of 0 means "not available" (identification.hpp): null, so that no script
+  // reads a zero-width interval as certainty.
+  for (const auto& p : rep.parameters) {
+    const bool known = p.standard_error > 0.0;
     params.push_back({{"name", p.name},
                       {"unit", p.unit},
                       {"value", p.value},
-                      {"standard_error", p.standard_error},
-                      {"lower95", p.lower95},
-                      {"upper95", p.upper95}});
+                      {"standard_error", known ? Json(p.standard_error) : Json(nullptr)},
+                      {"lower95", known ? Json(p.lower95) : Json(nullptr)},
+                      {"upper95", known ? Json(p.upper95) : Json(nullptr)}});
+  }
   j["parameters"] = params;
   Json corr = Json::array();
   for (Eigen::Index i = 0; i < rep.correlation.rows(); ++i) {

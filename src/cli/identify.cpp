@@ -143,9 +143,16 @@ void print_report(std::ostream& os, const IdentifiedModel& m) {
   }
   os << "  parameters (95 % intervals):\n";
   for (const auto& p : rep.parameters) {
-    char line[200];
-    std::snprintf(line, sizeof line, "    %-22s %13.6g  +- %-11.3g [%11.4g, %11.4g] %s\n",
-                  p.name.c_str(), p.value, p.standard_error, p.lower95, p.upper95, p.unit.c_str());
+    char line[240];
+    // A standard error of 0 means "not available" (identification.hpp): say so rather than print
+    // an interval of zero width that reads as perfect certainty.
+    if (p.standard_error > 0.0)
+      std::snprintf(line, sizeof line, "    %-22s %13.6g  +- %-11.3g [%11.4g, %11.4g] %s\n",
+                    p.name.c_str(), p.value, p.standard_error, p.lower95, p.upper95,
+                    p.unit.c_str());
+    else
+      std::snprintf(line, sizeof line, "    %-22s %13.6g  (no standard error: see warnings) %s\n",
+                    p.name.c_str(), p.value, p.unit.c_str());
     os << line;
   }
   os << "  converged: " << (rep.convergence.converged ? "yes" : "NO") << " ("
