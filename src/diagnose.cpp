@@ -256,8 +256,16 @@ ResidualEvidence evidence_of(const MaxwellSlipParameters<double>& base,
   if (!speeds.empty()) {  // Stribeck: grid over vs between the sliding speeds' quantiles
     Explained best;
     double best_vs = 0;
-    for (double qv : {0.02, 0.1, 0.25, 0.5, 0.75}) {
-      const double vs = std::max(quantile(speeds, qv), 1e-12);
+    // The quantiles alone fail on records with rests: operators that stop at their thresholds
+    // count as sliding at |v| ~ 0, the low quantiles fall to ~1e-7 m/s and the fit starts from
+    // a curve that no moving sample feels (flat cost).  A log grid below the 95 % quantile keeps
+    // starts inside the speeds the record actually slides at.
+    std::vector<double> grid;
+    for (double qv : {0.02, 0.1, 0.25, 0.5, 0.75}) grid.push_back(quantile(speeds, qv));
+    const double top = quantile(speeds, 0.95);
+    for (int g = 0; g < 8; ++g) grid.push_back(top * std::pow(0.01, g / 7.0));
+    for (double grid_vs : grid) {
+      const double vs = std::max(grid_vs, 1e-12);
       std::vector<double> g(n);
       for (std::size_t k = 0; k < n; ++k)
         g[k] = s.dir[k] * std::exp(-(s.v[k] / vs) * (s.v[k] / vs));
@@ -606,18 +614,57 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
   cur.validation = extended_validation_percent(cur.base, cur.ext, val);
   for (const auto& w : ms.report.warnings) dx.warnings.push_back("baseline NLR: " + w);
 
+  // Rule (b), third part (header, section 4): what one more Maxwell Slip element buys on the
+  // estimation record.  The order selection's table holds M + 1 unless M is the largest M it
+  // tried (the cap of max_operators); then M + 1 is fitted here.
+  double operator_drop = 0;
+  {
+    const std::size_t m = cur.base.size();
+    const SelectionRow* at = nullptr;
+    const SelectionRow* next = nullptr;
+    for (const auto& row : ms.report.selection) {
+      if (row.failed) continue;
+      if (row.operators == m) at = &row;
+      if (row.operators == m + 1) next = &row;
+    }
+    if (at && next) {
+      operator_drop = std::max(at->rss - next->rss, 0.0);
+    } else if (!next) {
+      MethodOptions more = o.method;
+      more.operators = m + 1;
+      more.max_operators = 0;
+      more.extensions = {};
+      try {
+        const IdentifiedModel bigger = identify_model("maxwell-slip", est, more);
+        operator_drop = std::max(ms.report.estimation.rss - bigger.report.estimation.rss, 0.0);
+      } catch (const std::exception& ex) {
+        dx.warnings.push_back("the reference fit with " + std::to_string(m + 1) +
+                              " operators failed (" + ex.what() + "); rule (b) without it");
+      }
+    }
+  }
+  dx.operator_drop = operator_drop;
+
   const auto earns = [&](double rss0, double rss1, std::size_t p, double val0, double val1,
                          double* dbic, double* required, std::string* verdict) {
     *dbic = bic(rss1, n, p) - bic(rss0, n, 0);
     *required =
-        std::max(chi2_999(p) * sigma * sigma, o.min_excess_share * std::max(rss0 - floor_rss, 0.0));
+        std::max({chi2_999(p) * sigma * sigma, o.min_excess_share * std::max(rss0 - floor_rss, 0.0),
+                  o.operator_reference ? operator_drop : 0.0});
     const double drop = rss0 - rss1;
     std::ostringstream s;
     bool ok = true;
     if (!(*dbic < 0)) ok = false, s << "BIC does not fall (" << fmt(*dbic) << "); ";
-    if (!(drop > *required))
-      ok = false, s << "estimation drop " << fmt(drop) << " N^2 below the required "
-                    << fmt(*required) << " N^2; ";
+    if (!(drop > *required)) {
+      ok = false;
+      s << "estimation drop " << fmt(drop) << " N^2 below the required " << fmt(*required)
+        << " N^2";
+      if (o.operator_reference && *required == operator_drop &&
+          drop > std::max(chi2_999(p) * sigma * sigma,
+                          o.min_excess_share * std::max(rss0 - floor_rss, 0.0)))
+        s << " (what one more operator buys: the baseline may be short of operators)";
+      s << "; ";
+    }
     if (std::isnan(val1))
       ok = false, s << "(validation not evaluated)";
     else if (!(val1 < val0))
@@ -789,6 +836,15 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
     rounds.push_back(std::move(tried));
   }
 
+  for (const auto& c : dx.first_round)
+    if (c.verdict.find("one more operator") != std::string::npos) {
+      dx.warnings.push_back(
+          "one more Maxwell Slip operator lowers the estimation error more than " +
+          std::string(effect_name(c.effect)) +
+          " would: the baseline may be short of operators (raise max_operators)");
+      break;
+    }
+
   // Backward pass: drop any accepted piece that no longer earns its place against the others.
   bool removed = false;
   if (o.backward_pass && chain.back().order.size() >= 2) {
@@ -891,9 +947,16 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
     if (!removed && i - 1 < rounds.size()) {
       for (const auto& t : rounds[i - 1]) {
         if (std::string(effect_name(t.fit.effect)) != partner || !t.result.ok) continue;
-        const double bic_gap = bic(t.fit.estimation_rss, n, t.fit.extra_parameters) -
-                               bic(after.rss, n, extra_parameters(after.ext, before.ext));
-        if (t.fit.earns_place && bic_gap < o.ambiguity_bic) {
+        // 2 ln(likelihood ratio) of the two fits for Gaussian errors, without the parameter
+        // penalty of BIC: the question is whether the record can tell the causes apart, not
+        // which one is simpler (a position term has two parameters more than a mass and fits a
+        // one-frequency record as well, which a BIC gap would hide behind 2 ln N).
+        const double evidence_gap =
+            static_cast<double>(n) * std::log(t.fit.estimation_rss / after.rss);
+        f.evidence["partner"] = {{"effect", partner},
+                                 {"earns_place", t.fit.earns_place},
+                                 {"log_likelihood_ratio", evidence_gap}};
+        if (t.fit.earns_place && std::abs(evidence_gap) < o.ambiguity_evidence) {
           f.ambiguous_with.push_back(partner);
           f.separating_excitation = separating_excitation(e);
         }
@@ -943,6 +1006,7 @@ Json Diagnosis::to_json() const {
       {"validation",
        {{"rss_sss_percent", baseline_validation_percent}, {"initial_state", "estimated"}}},
       {"estimation", {{"rss_sss_percent", baseline_estimation_percent}}},
+      {"one_more_operator_rss_drop", operator_drop},
       {"residual", baseline_evidence.to_json()}};
   Json fs = Json::array();
   for (const auto& f : findings) {
