@@ -437,6 +437,10 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
   nlr.operators = opt.operators;
   nlr.max_operators = opt.operators > 0 ? opt.operators : opt.max_operators;
   nlr.covariance = false;
+  // In the order selection NLR's thorough initial-state refinement of its own selected M is
+  // wasted here (DNLRX selects its own M, and its passes below refine the initial state of the
+  // model it returns); at a fixed M it gives the passes a better start.
+  nlr.refine_initial_state = opt.operators > 0;
   const NlrResult base = identify_maxwell_slip(time, x, force, nlr);
 
   DnlrxResult result;

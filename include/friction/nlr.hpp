@@ -105,6 +105,9 @@ struct NlrOptions {
   double function_tolerance = 1e-8;  ///< Ceres: stop when |cost change| / cost falls below
   unsigned seed = 1;               ///< NLopt's random seed (results are reproducible)
   bool covariance = true;          ///< standard errors and correlations
+  /// The thorough initial-state refinement of the returned fit (nlr.cpp).  DNLRX turns it off in
+  /// its order selection: it takes only NLR's minima per M and refines its own model.
+  bool refine_initial_state = true;
 };
 
 struct NlrResult {
