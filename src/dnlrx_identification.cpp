@@ -43,6 +43,18 @@ struct Series {
   double scale = 1;    // rms force
 };
 
+Series make_series(std::span<const double> x, std::span<const double> force) {
+  Series r;
+  r.x = x;
+  const Eigen::Index n = static_cast<Eigen::Index>(x.size());
+  r.y = Eigen::Map<const Eigen::VectorXd>(force.data(), n);
+  r.dx = Eigen::VectorXd::Zero(n);
+  for (Eigen::Index t = 1; t < n; ++t)
+    r.dx(t) = x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)];
+  r.scale = std::sqrt(r.y.squaredNorm() / static_cast<double>(n));
+  return r;
+}
+
 Eigen::MatrixXd regressors(const detail::OperatorTrajectories& tr, const Eigen::VectorXd& dx,
                            const Orders& o) {
   const Eigen::Index n = dx.size();
@@ -451,14 +463,9 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
   rep.presliding_travel = base.report.presliding_travel;
   rep.convergence.local_searches = base.report.convergence.local_searches;
 
-  Series r;
-  r.x = x;
-  const Eigen::Index n = static_cast<Eigen::Index>(x.size());
-  r.y = Eigen::Map<const Eigen::VectorXd>(force.data(), n);
-  r.dx = Eigen::VectorXd::Zero(n);
-  for (Eigen::Index t = 1; t < n; ++t) r.dx(t) = x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)];
+  const Series r = make_series(x, force);
+  const Eigen::Index n = r.y.size();
   const double sss = r.y.squaredNorm();
-  r.scale = std::sqrt(sss / static_cast<double>(n));
 
   // Rank tolerance from the data: a unit-norm column whose part outside the span of the others
   // (its pivot in the column-pivoted QR) is below eta / sqrt(N), eta = noise sigma / rms(F), could
@@ -594,15 +601,10 @@ DnlrxResult fit_dnlrx_filters(std::span<const double> time, std::span<const doub
     FRICTION_CHECK(std::isfinite(d) && d > 0.0, "fit_dnlrx_filters: threshold ", d, " must be > 0");
   FRICTION_CHECK(rank_tolerance > 0.0 && rank_tolerance < 1.0,
                  "fit_dnlrx_filters: rank_tolerance must be in (0, 1)");
-  Series r;
-  r.x = x;
-  const Eigen::Index n = static_cast<Eigen::Index>(x.size());
-  r.y = Eigen::Map<const Eigen::VectorXd>(force.data(), n);
-  r.dx = Eigen::VectorXd::Zero(n);
-  for (Eigen::Index t = 1; t < n; ++t) r.dx(t) = x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)];
+  const Series r = make_series(x, force);
+  const Eigen::Index n = r.y.size();
   const double sss = r.y.squaredNorm();
   FRICTION_CHECK(sss > 0.0, "fit_dnlrx_filters: the force is identically zero");
-  r.scale = std::sqrt(sss / static_cast<double>(n));
   const double eta = estimate_white_noise_sigma(force) / r.scale;
   const double tol = std::max(rank_tolerance, eta / std::sqrt(static_cast<double>(n)));
   const std::vector<double> thr(thresholds.begin(), thresholds.end());

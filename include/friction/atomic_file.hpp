@@ -18,17 +18,6 @@
 
 namespace friction {
 
-/// A file could not be written (or read, outside of the data checks): names the file and the cause.
-class FileError : public Error {
- public:
-  FileError(const std::filesystem::path& file, const std::string& what)
-      : Error(file.string() + ": " + what), file_(file) {}
-  const std::filesystem::path& file() const noexcept { return file_; }
-
- private:
-  std::filesystem::path file_;
-};
-
 /// Write `path` atomically with whatever `write` puts into the stream.  Exceptions thrown by
 /// `write` propagate unchanged (after clean-up); I/O failures throw FileError.
 void write_file_atomically(const std::filesystem::path& path,

@@ -39,12 +39,6 @@
 
 namespace friction {
 
-/// A malformed option value (`--columns`, `--units`, `--force-sign`): a usage error (exit 2).
-class OptionError : public Error {
- public:
-  using Error::Error;
-};
-
 /// Header names chosen explicitly for each signal; an empty name means "find it by its aliases".
 struct ColumnMapping {
   std::string time, displacement, force, normal;

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cassert>
+#include <filesystem>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -56,6 +57,23 @@ class DataError : public Error {
 class NumericalError : public Error {
  public:
   using Error::Error;
+};
+
+/// A malformed option value (`--columns`, `--units`, `--force-sign`): a usage error (exit 2).
+class OptionError : public Error {
+ public:
+  using Error::Error;
+};
+
+/// A file could not be written (or read, outside of the data checks): names the file and the cause.
+class FileError : public Error {
+ public:
+  FileError(const std::filesystem::path& file, const std::string& what)
+      : Error(file.string() + ": " + what), file_(file) {}
+  const std::filesystem::path& file() const noexcept { return file_; }
+
+ private:
+  std::filesystem::path file_;
 };
 
 namespace detail {
