@@ -29,7 +29,8 @@ MaxwellSlipParameters<double> ten_operators() {
 
 Record with_viscous(Record r, double viscous) {
   for (std::size_t k = 1; k < r.size(); ++k)
-    r.force[k] += viscous * (r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]);
+    r.force[k] +=
+        viscous * (r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]);
   return r;
 }
 
@@ -68,7 +69,8 @@ void BM_NlrFourOperatorsSolver(benchmark::State& state) {
     const auto r = identify_maxwell_slip(rec.time, rec.displacement, rec.force, o);
     percent = r.report.estimation.rss_sss_percent;
     double best = 1e300, worst = 0;
-    for (const auto& s : r.report.starts) best = std::min(best, s.final_percent), worst = std::max(worst, s.final_percent);
+    for (const auto& s : r.report.starts)
+      best = std::min(best, s.final_percent), worst = std::max(worst, s.final_percent);
     state.counters["best_start_percent"] = best;
     state.counters["worst_start_percent"] = worst;
   }
@@ -82,16 +84,17 @@ void BM_DnlrxSelection(benchmark::State& state) {
   const Record rec = with_viscous(testing::synthetic_record(sys, 10000, 30e-6, 0, 2e-3, 21,
                                                             {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr),
                                   150.0);
-  const Record val = with_viscous(testing::synthetic_record(sys, 10000, 25e-6, 1, 2e-3, 22,
-                                                            {0, 1e-6, -4e-6, 8e-6}, nullptr),
-                                  150.0);
+  const Record val = with_viscous(
+      testing::synthetic_record(sys, 10000, 25e-6, 1, 2e-3, 22, {0, 1e-6, -4e-6, 8e-6}, nullptr),
+      150.0);
   DnlrxOptions o;
   o.thresholds = static_cast<DnlrxThresholds>(state.range(0));
   double percent = 0, validation = 0, m = 0, n = 0, nx = 0;
   for (auto _ : state) {
     const auto r = identify_dnlrx(rec.time, rec.displacement, rec.force, o);
     percent = r.report.estimation.rss_sss_percent;
-    validation = free_run_dnlrx(r.parameters, val.time, val.displacement, val.force).errors.rss_sss_percent;
+    validation =
+        free_run_dnlrx(r.parameters, val.time, val.displacement, val.force).errors.rss_sss_percent;
     m = static_cast<double>(r.parameters.size());
     n = static_cast<double>(r.parameters.spring_order);
     nx = static_cast<double>(r.parameters.input_taps()) - 1;

@@ -32,7 +32,8 @@ struct Orders {
 std::string column_name(const Orders& o, Eigen::Index c) {
   const auto cu = static_cast<std::size_t>(c);
   if (cu < o.m * (o.n + 1))
-    return "spring_filter[" + std::to_string(cu / (o.n + 1) + 1) + "," + std::to_string(cu % (o.n + 1)) + "]";
+    return "spring_filter[" + std::to_string(cu / (o.n + 1) + 1) + "," +
+           std::to_string(cu % (o.n + 1)) + "]";
   return "input_filter[" + std::to_string(cu - o.m * (o.n + 1)) + "]";
 }
 
@@ -61,7 +62,8 @@ Eigen::MatrixXd regressors(const detail::OperatorTrajectories& tr, const Eigen::
   Eigen::MatrixXd phi(n, o.columns());
   for (std::size_t i = 0; i < o.m; ++i)
     for (std::size_t j = 0; j <= o.n; ++j)
-      phi.col(o.spring_column(i, j)) = detail::lagged(tr.delta.col(static_cast<Eigen::Index>(i)), static_cast<Eigen::Index>(j));
+      phi.col(o.spring_column(i, j)) =
+          detail::lagged(tr.delta.col(static_cast<Eigen::Index>(i)), static_cast<Eigen::Index>(j));
   for (std::size_t j = 0; j <= o.nx; ++j)
     phi.col(o.input_column(j)) = detail::lagged(dx, static_cast<Eigen::Index>(j));
   return phi;
@@ -104,13 +106,15 @@ LinearFit fit_linear(const Series& r, const std::vector<double>& thr, const Orde
     for (std::size_t i = 0; i < o.m; ++i)
       if (tr.d_initial.col(static_cast<Eigen::Index>(i)).minCoeff() > 0.5) {
         fit.never_saturating.push_back(i);
-        for (std::size_t j = 1; j <= o.n; ++j) keep[static_cast<std::size_t>(o.spring_column(i, j))] = 0;
+        for (std::size_t j = 1; j <= o.n; ++j)
+          keep[static_cast<std::size_t>(o.spring_column(i, j))] = 0;
       }
     std::vector<Eigen::Index> cols;
     for (Eigen::Index c = 0; c < o.columns(); ++c)
       if (keep[static_cast<std::size_t>(c)]) cols.push_back(c);
     Eigen::MatrixXd pk(phi.rows(), static_cast<Eigen::Index>(cols.size()));
-    for (std::size_t k = 0; k < cols.size(); ++k) pk.col(static_cast<Eigen::Index>(k)) = phi.col(cols[k]);
+    for (std::size_t k = 0; k < cols.size(); ++k)
+      pk.col(static_cast<Eigen::Index>(k)) = phi.col(cols[k]);
     const detail::Projector proj(pk, tol);
     const Eigen::VectorXd ck = proj.solve(r.y);
     fit.c = Eigen::VectorXd::Zero(o.columns());
@@ -148,8 +152,8 @@ std::vector<double> first_initial_state(const Series& r, const std::vector<doubl
   if (k.norm() == 0.0) return std::vector<double>(m, 0.0);
   const Eigen::MatrixXd filter = k;
   return estimate_initial_deflections(
-      r.x, std::span<const double>(r.y.data(), static_cast<std::size_t>(r.y.size())), thr, filter, {},
-      InitialStateOptions::quick());
+      r.x, std::span<const double>(r.y.data(), static_cast<std::size_t>(r.y.size())), thr, filter,
+      {}, InitialStateOptions::quick());
 }
 
 // Variable projection over (s, rho) for fixed orders: residual (y - Phi c*) / scale.
@@ -196,8 +200,10 @@ class DnlrxVpCost final : public ceres::CostFunction {
         const Eigen::Index ii = static_cast<Eigen::Index>(i);
         for (int which = 0; which < 2; ++which) {
           const Eigen::Index col = ii + which * mi;
-          if (which == 0) base_ = tr_.d_threshold.col(ii) + p[1][i] * tr_.d_initial.col(ii);
-          else base_ = thr_[i] * tr_.d_initial.col(ii);
+          if (which == 0)
+            base_ = tr_.d_threshold.col(ii) + p[1][i] * tr_.d_initial.col(ii);
+          else
+            base_ = thr_[i] * tr_.d_initial.col(ii);
           base_ /= r_.scale;
           for (std::size_t j = 0; j <= o_.n; ++j) {
             // The lag-j copy of base (the record extended backwards with its first value).
@@ -245,8 +251,8 @@ struct Reoptimised {
 
 // Thresholds (and initial deflections) re-optimised with the filters by variable projection.
 Reoptimised reoptimise(const Series& r, const Orders& o, const detail::StickBreaking& sb,
-                       const std::vector<double>& thr0, const std::vector<double>& init0, double tol,
-                       int max_iterations) {
+                       const std::vector<double>& thr0, const std::vector<double>& init0,
+                       double tol, int max_iterations) {
   std::vector<double> s = sb.coordinates(thr0), rho(o.m);
   for (std::size_t i = 0; i < o.m; ++i) rho[i] = std::clamp(init0[i] / thr0[i], -1.0, 1.0);
   ceres::Problem problem;
@@ -292,18 +298,20 @@ void finish(std::span<const double> time, std::span<const double> x, std::span<c
   for (Eigen::Index c : fit.dropped) {
     bool explained = false;
     for (std::size_t i : fit.never_saturating)
-      explained |= static_cast<std::size_t>(c) < o.m * (o.n + 1) && static_cast<std::size_t>(c) / (o.n + 1) == i;
+      explained |= static_cast<std::size_t>(c) < o.m * (o.n + 1) &&
+                   static_cast<std::size_t>(c) / (o.n + 1) == i;
     if (!explained)
-      rep.warnings.push_back(column_name(o, c) + " is numerically dependent on the other regressors "
-                                                 "(rank-revealing QR): dropped (set to 0)");
+      rep.warnings.push_back(column_name(o, c) +
+                             " is numerically dependent on the other regressors "
+                             "(rank-revealing QR): dropped (set to 0)");
   }
 
   // Free run from the estimated initial state.
   {
     const Eigen::VectorXd target = r.y - input_part(r, o, fit.c);
-    rep.initial_deflections = estimate_initial_deflections(
-        x, std::span<const double>(target.data(), x.size()), p.threshold, spring_matrix(o, fit.c),
-        fit.init);
+    rep.initial_deflections =
+        estimate_initial_deflections(x, std::span<const double>(target.data(), x.size()),
+                                     p.threshold, spring_matrix(o, fit.c), fit.init);
     Dnlrx<double> model(p);
     model.reset(std::span<const double>(rep.initial_deflections));
     rep.estimation_simulated = simulate(model, time, x);
@@ -362,13 +370,15 @@ void finish(std::span<const double> time, std::span<const double> x, std::span<c
       const Eigen::VectorXd g = tr.d_initial.col(i);
       Eigen::VectorXd a = Eigen::VectorXd::Zero(n);
       for (std::size_t l = 0; l <= o.n; ++l)
-        a += p.theta(static_cast<std::size_t>(i), l) * detail::lagged(g, static_cast<Eigen::Index>(l));
+        a += p.theta(static_cast<std::size_t>(i), l) *
+             detail::lagged(g, static_cast<Eigen::Index>(l));
       if (a.norm() > 0.0) nuisance.push_back(std::move(a));
     }
     const Eigen::Index pj = j.cols();
     Eigen::MatrixXd jn(n, pj + static_cast<Eigen::Index>(nuisance.size()));
     jn.leftCols(pj) = j;
-    for (std::size_t k = 0; k < nuisance.size(); ++k) jn.col(pj + static_cast<Eigen::Index>(k)) = nuisance[k];
+    for (std::size_t k = 0; k < nuisance.size(); ++k)
+      jn.col(pj + static_cast<Eigen::Index>(k)) = nuisance[k];
     Eigen::MatrixXd cov;
     const double dof = std::max(1.0, static_cast<double>(n) - static_cast<double>(jn.cols()));
     const double sigma2 = rep.estimation.rss / dof;
@@ -376,25 +386,30 @@ void finish(std::span<const double> time, std::span<const double> x, std::span<c
       cov *= sigma2;
       for (std::size_t a = 0; a < cols.size(); ++a) {
         auto& est = rep.parameters[static_cast<std::size_t>(cols[a])];
-        const double se = std::sqrt(std::max(0.0, cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(a))));
+        const double se = std::sqrt(
+            std::max(0.0, cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(a))));
         if (cols[a] < pc) {
           est.standard_error = se;
           est.lower95 = est.value - 1.96 * se;
           est.upper95 = est.value + 1.96 * se;
           if (std::abs(est.value) < 1.96 * se)
-            rep.warnings.push_back(est.name + ": not significantly different from 0 (|value| < 1.96 se)");
+            rep.warnings.push_back(est.name +
+                                   ": not significantly different from 0 (|value| < 1.96 se)");
         } else {
           est.standard_error = est.value * se;  // se is of log Delta
           est.lower95 = est.value * std::exp(-1.96 * se);
           est.upper95 = est.value * std::exp(1.96 * se);
           if (est.upper95 / est.lower95 > 10.0)
-            rep.warnings.push_back(est.name + ": 95 % interval spans more than an order of magnitude");
+            rep.warnings.push_back(est.name +
+                                   ": 95 % interval spans more than an order of magnitude");
         }
         for (std::size_t b = 0; b < cols.size(); ++b) {
-          const double den = std::sqrt(cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(a)) *
-                                       cov(static_cast<Eigen::Index>(b), static_cast<Eigen::Index>(b)));
+          const double den =
+              std::sqrt(cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(a)) *
+                        cov(static_cast<Eigen::Index>(b), static_cast<Eigen::Index>(b)));
           rep.correlation(cols[a], cols[b]) =
-              den > 0.0 ? cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) / den : (a == b ? 1.0 : 0.0);
+              den > 0.0 ? cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) / den
+                        : (a == b ? 1.0 : 0.0);
         }
       }
     } else {
@@ -417,11 +432,14 @@ DnlrxFreeRun free_run_dnlrx(const DnlrxParameters<double>& p, std::span<const do
     double in = 0;
     for (std::size_t j = 0; j < p.input_taps(); ++j) {
       const Eigen::Index s = t - static_cast<Eigen::Index>(j);
-      if (s >= 1) in += p.input_filter[j] * (x[static_cast<std::size_t>(s)] - x[static_cast<std::size_t>(s - 1)]);
+      if (s >= 1)
+        in += p.input_filter[j] *
+              (x[static_cast<std::size_t>(s)] - x[static_cast<std::size_t>(s - 1)]);
     }
     target(t) = force[static_cast<std::size_t>(t)] - in;
   }
-  Eigen::MatrixXd theta(static_cast<Eigen::Index>(p.size()), static_cast<Eigen::Index>(p.spring_taps()));
+  Eigen::MatrixXd theta(static_cast<Eigen::Index>(p.size()),
+                        static_cast<Eigen::Index>(p.spring_taps()));
   for (std::size_t i = 0; i < p.size(); ++i)
     for (std::size_t j = 0; j < p.spring_taps(); ++j)
       theta(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) = p.theta(i, j);
@@ -440,7 +458,8 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
   const auto clock_start = std::chrono::steady_clock::now();
   FRICTION_CHECK(time.size() == x.size() && x.size() == force.size(),
                  "identify_dnlrx: time, displacement and force lengths differ");
-  FRICTION_CHECK(opt.operators > 0 || opt.max_operators > 0, "identify_dnlrx: max_operators must be >= 1");
+  FRICTION_CHECK(opt.operators > 0 || opt.max_operators > 0,
+                 "identify_dnlrx: max_operators must be >= 1");
   FRICTION_CHECK(opt.rank_tolerance > 0.0 && opt.rank_tolerance < 1.0,
                  "identify_dnlrx: rank_tolerance must be in (0, 1)");
 
@@ -536,7 +555,8 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
         rep.selection.push_back(row);
       }
   }
-  FRICTION_CHECK_AS(NumericalError, !rep.selection.empty(), "identify_dnlrx: no order could be fitted");
+  FRICTION_CHECK_AS(NumericalError, !rep.selection.empty(),
+                    "identify_dnlrx: no order could be fitted");
   rep.selection[best_row].selected = true;
   const Orders o = best.o;
 
@@ -584,8 +604,10 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
 
   finish(time, x, force, r, o, best.thr, best.fit, opt.covariance, result);
   if (o.m == m_hi && opt.operators == 0 && m_hi > 1)
-    rep.warnings.push_back("the criterion chose the largest M tried (" + std::to_string(m_hi) + ")");
-  rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+    rep.warnings.push_back("the criterion chose the largest M tried (" + std::to_string(m_hi) +
+                           ")");
+  rep.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return result;
 }
 
@@ -628,7 +650,8 @@ DnlrxResult fit_dnlrx_filters(std::span<const double> time, std::span<const doub
   rep.convergence.message = "linear least squares for fixed thresholds";
   rep.convergence.initial_cost = rep.convergence.final_cost = row.rss_sss_percent;
   finish(time, x, force, r, o, thr, fit, true, result);
-  rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  rep.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return result;
 }
 

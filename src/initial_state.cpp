@@ -34,7 +34,6 @@ Prediction predict(std::span<const double> x, std::span<const double> thresholds
   return p;
 }
 
-
 // Single-operator trajectory from initial deflection d (unit stiffness), sample 0 included.
 Eigen::VectorXd single_trajectory(std::span<const double> x, double threshold, double d) {
   const Eigen::Index n = static_cast<Eigen::Index>(x.size());
@@ -42,7 +41,8 @@ Eigen::VectorXd single_trajectory(std::span<const double> x, double threshold, d
   double s = std::clamp(d, -threshold, threshold);
   out(0) = s;
   for (Eigen::Index t = 1; t < n; ++t) {
-    s = std::clamp(s + x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)], -threshold, threshold);
+    s = std::clamp(s + x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)],
+                   -threshold, threshold);
     out(t) = s;
   }
   return out;
@@ -66,8 +66,11 @@ Eigen::VectorXd filtered(const Eigen::VectorXd& delta, const Eigen::RowVectorXd&
 class OneOperator {
  public:
   OneOperator(std::span<const double> x, double threshold, const Eigen::RowVectorXd& taps)
-      : n_(static_cast<Eigen::Index>(x.size())), lags_(taps.size() - 1), threshold_(threshold),
-        big_theta_(taps.sum()), taps_(taps) {
+      : n_(static_cast<Eigen::Index>(x.size())),
+        lags_(taps.size() - 1),
+        threshold_(threshold),
+        big_theta_(taps.sum()),
+        taps_(taps) {
     xi_.resize(n_);
     for (Eigen::Index t = 0; t < n_; ++t) xi_(t) = x[static_cast<std::size_t>(t)] - x[0];
     eta_ = filtered(xi_, taps);
@@ -98,7 +101,8 @@ class OneOperator {
       const double* mn = run_min_.data();
       const Eigen::Index tt = std::lower_bound(mx, mx + n_, threshold - d) - mx;
       const Eigen::Index tb =
-          std::lower_bound(mn, mn + n_, -threshold - d, [](double u, double v) { return u > v; }) - mn;
+          std::lower_bound(mn, mn + n_, -threshold - d, [](double u, double v) { return u > v; }) -
+          mn;
       p.top = tt <= tb;
       p.tau = std::min(tt, tb);
       pieces_.push_back(p);
@@ -131,8 +135,10 @@ class OneOperator {
         double alpha = 0.0, beta = 0.0;
         for (Eigen::Index j = 0; j <= lags_; ++j) {
           const Eigen::Index s = std::max<Eigen::Index>(t - j, 0);
-          if (s < pc.tau) alpha += taps_(j), beta += taps_(j) * xi_(s);
-          else beta += taps_(j) * ref(s);
+          if (s < pc.tau)
+            alpha += taps_(j), beta += taps_(j) * xi_(s);
+          else
+            beta += taps_(j) * ref(s);
         }
         const double r = y(t) - beta;
         qa += alpha * alpha;
@@ -140,7 +146,8 @@ class OneOperator {
         qc += r * r;
       }
       qc += (pc.top ? s_top : s_bottom)(end);
-      const double d = qa > 0.0 ? std::clamp(-qb / (2.0 * qa), pc.lo, pc.hi) : (qb > 0.0 ? pc.lo : pc.hi);
+      const double d =
+          qa > 0.0 ? std::clamp(-qb / (2.0 * qa), pc.lo, pc.hi) : (qb > 0.0 ? pc.lo : pc.hi);
       const double c = (qa * d + qb) * d + qc;
       if (c < best_cost) best_cost = c, best_d = d;
     }
@@ -170,8 +177,8 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
                                                  const InitialStateOptions& options) {
   const std::size_t m = thresholds.size();
   FRICTION_CHECK(m >= 1 && static_cast<std::size_t>(filter.rows()) == m && filter.cols() >= 1,
-                 "estimate_initial_deflections: filter must be M x (n+1) with M = ",
-                 m, " thresholds");
+                 "estimate_initial_deflections: filter must be M x (n+1) with M = ", m,
+                 " thresholds");
   FRICTION_CHECK(x.size() == target.size() && !x.empty(),
                  "estimate_initial_deflections: displacement and force lengths differ");
   FRICTION_CHECK(guess.empty() || guess.size() == m,
@@ -198,7 +205,8 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
     x = x.first(end);
     target = target.first(end);
   }
-  const Eigen::Map<const Eigen::VectorXd> y(target.data(), static_cast<Eigen::Index>(target.size()));
+  const Eigen::Map<const Eigen::VectorXd> y(target.data(),
+                                            static_cast<Eigen::Index>(target.size()));
 
   auto cost_of = [&](const std::vector<double>& d) {
     return (y - predict(x, thresholds, filter, d, false).force).squaredNorm();
@@ -225,13 +233,16 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
       candidates.push_back(d);
     }
   std::vector<std::pair<double, std::size_t>> ranked;
-  for (std::size_t c = 0; c < candidates.size(); ++c) ranked.emplace_back(cost_of(candidates[c]), c);
+  for (std::size_t c = 0; c < candidates.size(); ++c)
+    ranked.emplace_back(cost_of(candidates[c]), c);
   std::sort(ranked.begin(), ranked.end());
 
   std::vector<OneOperator> single;
   for (std::size_t i = 0; i < m; ++i)
-    single.emplace_back(x, thresholds[i], Eigen::RowVectorXd(filter.row(static_cast<Eigen::Index>(i))));
-  auto refine = [&](std::vector<double> best, int rounds = 4, int sweeps = 4, int gn_iterations = 8) {
+    single.emplace_back(x, thresholds[i],
+                        Eigen::RowVectorXd(filter.row(static_cast<Eigen::Index>(i))));
+  auto refine = [&](std::vector<double> best, int rounds = 4, int sweeps = 4,
+                    int gn_iterations = 8) {
     double best_cost = cost_of(best);
     // 2. Coordinate descent with each operator's exact global 1-D minimum, then
     // 3. projected Gauss-Newton on all operators together (it moves along the valleys where only a
@@ -239,63 +250,67 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
     //    while either improves the cost.
     const Eigen::Index mi = static_cast<Eigen::Index>(m);
     for (int round = 0; round < rounds; ++round) {
-    const double round_start = best_cost;
-    {
-      const Eigen::Index n = y.size();
-      Eigen::MatrixXd contribution(n, mi);
-      for (Eigen::Index i = 0; i < mi; ++i)
-        contribution.col(i) = filtered(single_trajectory(x, thresholds[static_cast<std::size_t>(i)], best[static_cast<std::size_t>(i)]), filter.row(i));
-      Eigen::VectorXd total = contribution.rowwise().sum();
-      for (int sweep = 0; sweep < sweeps; ++sweep) {
-        bool moved = false;
+      const double round_start = best_cost;
+      {
+        const Eigen::Index n = y.size();
+        Eigen::MatrixXd contribution(n, mi);
+        for (Eigen::Index i = 0; i < mi; ++i)
+          contribution.col(i) =
+              filtered(single_trajectory(x, thresholds[static_cast<std::size_t>(i)],
+                                         best[static_cast<std::size_t>(i)]),
+                       filter.row(i));
+        Eigen::VectorXd total = contribution.rowwise().sum();
+        for (int sweep = 0; sweep < sweeps; ++sweep) {
+          bool moved = false;
+          for (Eigen::Index i = 0; i < mi; ++i) {
+            const std::size_t iu = static_cast<std::size_t>(i);
+            if (filter.row(i).isZero()) continue;
+            const Eigen::VectorXd yi = y - (total - contribution.col(i));
+            const double d = single[iu].minimise(yi);
+            if (d == best[iu]) continue;
+            const Eigen::VectorXd ci =
+                filtered(single_trajectory(x, thresholds[iu], d), filter.row(i));
+            const double before = (yi - contribution.col(i)).squaredNorm();
+            const double after = (yi - ci).squaredNorm();
+            if (after < before - 1e-9 * best_cost) {
+              best[iu] = d;
+              total += ci - contribution.col(i);
+              contribution.col(i) = ci;
+              moved = true;
+            }
+          }
+          if (!moved) break;
+        }
+        best_cost = cost_of(best);
+      }
+
+      for (int it = 0; it < gn_iterations; ++it) {
+        const Prediction p = predict(x, thresholds, filter, best, true);
+        const Eigen::VectorXd r = y - p.force;
+        Eigen::VectorXd lo(mi), hi(mi);
         for (Eigen::Index i = 0; i < mi; ++i) {
-          const std::size_t iu = static_cast<std::size_t>(i);
-          if (filter.row(i).isZero()) continue;
-          const Eigen::VectorXd yi = y - (total - contribution.col(i));
-          const double d = single[iu].minimise(yi);
-          if (d == best[iu]) continue;
-          const Eigen::VectorXd ci = filtered(single_trajectory(x, thresholds[iu], d), filter.row(i));
-          const double before = (yi - contribution.col(i)).squaredNorm();
-          const double after = (yi - ci).squaredNorm();
-          if (after < before - 1e-9 * best_cost) {
-            best[iu] = d;
-            total += ci - contribution.col(i);
-            contribution.col(i) = ci;
-            moved = true;
+          lo(i) = -thresholds[static_cast<std::size_t>(i)] - best[static_cast<std::size_t>(i)];
+          hi(i) = thresholds[static_cast<std::size_t>(i)] - best[static_cast<std::size_t>(i)];
+        }
+        const Eigen::VectorXd step = detail::box_least_squares(p.jacobian, r, lo, hi);
+        if (step.norm() <= 1e-14 * dmax) break;
+        bool accepted = false;
+        for (double alpha = 1.0; alpha > 1e-4; alpha *= 0.25) {
+          std::vector<double> trial(m);
+          for (std::size_t i = 0; i < m; ++i)
+            trial[i] = std::clamp(best[i] + alpha * step(static_cast<Eigen::Index>(i)),
+                                  -thresholds[i], thresholds[i]);
+          const double c = cost_of(trial);
+          if (c < best_cost) {
+            accepted = best_cost - c > 1e-14 * best_cost;
+            best_cost = c;
+            best = trial;
+            break;
           }
         }
-        if (!moved) break;
+        if (!accepted) break;
       }
-      best_cost = cost_of(best);
-    }
-
-    for (int it = 0; it < gn_iterations; ++it) {
-      const Prediction p = predict(x, thresholds, filter, best, true);
-      const Eigen::VectorXd r = y - p.force;
-      Eigen::VectorXd lo(mi), hi(mi);
-      for (Eigen::Index i = 0; i < mi; ++i) {
-        lo(i) = -thresholds[static_cast<std::size_t>(i)] - best[static_cast<std::size_t>(i)];
-        hi(i) = thresholds[static_cast<std::size_t>(i)] - best[static_cast<std::size_t>(i)];
-      }
-      const Eigen::VectorXd step = detail::box_least_squares(p.jacobian, r, lo, hi);
-      if (step.norm() <= 1e-14 * dmax) break;
-      bool accepted = false;
-      for (double alpha = 1.0; alpha > 1e-4; alpha *= 0.25) {
-        std::vector<double> trial(m);
-        for (std::size_t i = 0; i < m; ++i)
-          trial[i] = std::clamp(best[i] + alpha * step(static_cast<Eigen::Index>(i)), -thresholds[i],
-                                thresholds[i]);
-        const double c = cost_of(trial);
-        if (c < best_cost) {
-          accepted = best_cost - c > 1e-14 * best_cost;
-          best_cost = c;
-          best = trial;
-          break;
-        }
-      }
-      if (!accepted) break;
-    }
-    if (!(best_cost < round_start * (1.0 - 1e-8))) break;
+      if (!(best_cost < round_start * (1.0 - 1e-8))) break;
     }
     return std::pair<double, std::vector<double>>(best_cost, best);
   };
@@ -327,7 +342,8 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
     const double scale = std::array<double, 3>{0.03, 0.1, 0.3}[h % 3];
     std::vector<double> start = result.second;
     for (std::size_t i = 0; i < m; ++i)
-      start[i] = std::clamp(start[i] + scale * thresholds[i] * unit(gen), -thresholds[i], thresholds[i]);
+      start[i] =
+          std::clamp(start[i] + scale * thresholds[i] * unit(gen), -thresholds[i], thresholds[i]);
     auto out = refine(start);
     if (out.first < result.first * (1.0 - 1e-12)) result = std::move(out);
   }

@@ -129,7 +129,6 @@ struct Segment {
   bool slides = false;
 };
 
-
 std::vector<Segment> segments_of(std::span<const double> x, std::span<const double> force) {
   const double range = 2.0 * largest_travel(x);
   const double h = std::max(3.0 * displacement_resolution(x), 1e-4 * range);

@@ -60,15 +60,17 @@ const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<c
   const std::vector<double> thr = d.sb.thresholds(s);
   auto& traj = ws.traj;
   VpValue& v = ws.v;
-  const bool same_point = ws.point.size() == 2 * m && std::equal(s.begin(), s.end(), ws.point.begin()) &&
-                          std::equal(rho.begin(), rho.end(), ws.point.begin() + static_cast<std::ptrdiff_t>(m));
+  const bool same_point =
+      ws.point.size() == 2 * m && std::equal(s.begin(), s.end(), ws.point.begin()) &&
+      std::equal(rho.begin(), rho.end(), ws.point.begin() + static_cast<std::ptrdiff_t>(m));
   if (!same_point || (with_jacobian && !ws.has_sensitivities)) {
     std::vector<double> init(m);
     for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
     const bool sensitivities = with_jacobian || ws.eager;
     detail::operator_trajectories(thr, init, d.x, sensitivities, traj);
     const Eigen::VectorXd lo = Eigen::VectorXd::Zero(mi);
-    const Eigen::VectorXd hi = Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity());
+    const Eigen::VectorXd hi =
+        Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity());
     v.k = detail::box_least_squares(traj.delta, d.y, lo, hi, &v.at_bound, &ws.nnls);
     v.r = d.y;
     v.r.noalias() -= traj.delta * v.k;
@@ -91,7 +93,8 @@ const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<c
       ws.proj.compute(traj.delta);
     } else {
       ws.phi.resize(n, nf);
-      for (Eigen::Index f = 0; f < nf; ++f) ws.phi.col(f) = traj.delta.col(free[static_cast<std::size_t>(f)]);
+      for (Eigen::Index f = 0; f < nf; ++f)
+        ws.phi.col(f) = traj.delta.col(free[static_cast<std::size_t>(f)]);
       ws.proj.compute(ws.phi);
     }
     // Columns: d/dDelta_i then d/drho_i for every free operator, all projected at once.
@@ -99,7 +102,8 @@ const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<c
     ws.w.setZero(nf, 2 * nf);
     for (Eigen::Index f = 0; f < nf; ++f) {
       const Eigen::Index i = free[static_cast<std::size_t>(f)];
-      const double ki = v.k(i), ri = rho[static_cast<std::size_t>(i)], di = thr[static_cast<std::size_t>(i)];
+      const double ki = v.k(i), ri = rho[static_cast<std::size_t>(i)],
+                   di = thr[static_cast<std::size_t>(i)];
       ws.a.col(f) = traj.d_threshold.col(i) + ri * traj.d_initial.col(i);
       ws.a.col(nf + f) = di * traj.d_initial.col(i);
       ws.w(f, f) = ws.a.col(f).dot(v.r);
@@ -246,8 +250,8 @@ std::vector<double> start_rho(const Data& d, const std::vector<double>& thr) {
   Eigen::MatrixXd filter = k;
   if (filter.norm() == 0.0) return std::vector<double>(m, 0.0);
   const auto init = estimate_initial_deflections(
-      d.x, std::span<const double>(d.y.data(), static_cast<std::size_t>(d.y.size())), thr, filter, {},
-      InitialStateOptions::quick());
+      d.x, std::span<const double>(d.y.data(), static_cast<std::size_t>(d.y.size())), thr, filter,
+      {}, InitialStateOptions::quick());
   std::vector<double> rho(m);
   for (std::size_t i = 0; i < m; ++i) rho[i] = std::clamp(init[i] / thr[i], -1.0, 1.0);
   return rho;
@@ -265,7 +269,8 @@ std::vector<double> start_rho(const Data& d, const std::vector<double>& thr) {
 class HopelessSearch final : public ceres::IterationCallback {
  public:
   static constexpr std::size_t kWindow = 10;
-  HopelessSearch(double target, int max_iterations) : target_(target), max_iterations_(max_iterations) {}
+  HopelessSearch(double target, int max_iterations)
+      : target_(target), max_iterations_(max_iterations) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
     const double best = best_.empty() ? it.cost : std::min(best_.back(), it.cost);
     best_.push_back(best);
@@ -288,8 +293,7 @@ class HopelessSearch final : public ceres::IterationCallback {
 
 // `target` [RSS/SSS %]: the lowest cost already known to be reachable (HopelessSearch); infinity
 // disables the stop.
-Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho,
-                 const NlrOptions& o,
+Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, const NlrOptions& o,
                  double target = std::numeric_limits<double>::infinity()) {
   const int m = static_cast<int>(s.size());
   for (double& v : s) v = std::clamp(v, 0.0, 1.0);
@@ -363,8 +367,8 @@ void refine_initial_state(const Data& d, Fit& best, const NlrOptions& o, bool th
     for (std::size_t i = 0; i < m; ++i) guess[i] = best.rho[i] * thr[i];
     const Eigen::MatrixXd filter = best.k;
     const auto init = estimate_initial_deflections(
-        d.x, std::span<const double>(d.y.data(), static_cast<std::size_t>(d.y.size())), thr,
-        filter, guess, thorough ? InitialStateOptions{} : InitialStateOptions::quick());
+        d.x, std::span<const double>(d.y.data(), static_cast<std::size_t>(d.y.size())), thr, filter,
+        guess, thorough ? InitialStateOptions{} : InitialStateOptions::quick());
     std::vector<double> rho(m);
     for (std::size_t i = 0; i < m; ++i) rho[i] = std::clamp(init[i] / thr[i], -1.0, 1.0);
     if (rho == best.rho) return;
@@ -408,8 +412,8 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
   std::vector<std::pair<std::string, std::vector<double>>> starts;
   std::vector<double> quant(m);
   for (std::size_t j = 0; j < m; ++j)
-    quant[j] = 0.5 * travel_at_force_fraction(d.x, d.force, (static_cast<double>(j) + 0.5) /
-                                                                   static_cast<double>(m));
+    quant[j] = 0.5 * travel_at_force_fraction(
+                         d.x, d.force, (static_cast<double>(j) + 0.5) / static_cast<double>(m));
   quant = clamp_sorted(quant, sc.q, sc.travel);
   starts.emplace_back("force-quantiles", quant);
   {
@@ -418,7 +422,8 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
     std::vector<double> geo(m);
     for (std::size_t j = 0; j < m; ++j)
       geo[j] = m == 1 ? std::sqrt(bottom * top)
-                      : bottom * std::pow(top / bottom, static_cast<double>(j) / static_cast<double>(m - 1));
+                      : bottom * std::pow(top / bottom,
+                                          static_cast<double>(j) / static_cast<double>(m - 1));
     starts.emplace_back("geometric", clamp_sorted(geo, sc.q, sc.travel));
   }
   if (previous && !previous->empty()) {
@@ -505,8 +510,8 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
   // and runs only while the previous round improved the best fit by more than stall_tolerance;
   // at a fixed M only (in the order selection every M has the warm start from M - 1 as well).
   const int rounds = o.operators > 0 ? 3 : 1;
-  for (int round = 0; round < rounds && o.global_stage && minima.size() > 1 &&
-                      !(best.percent <= d.floor_percent);
+  for (int round = 0;
+       round < rounds && o.global_stage && minima.size() > 1 && !(best.percent <= d.floor_percent);
        ++round) {
     const double before_round = best.percent;
     // The starts stalled in different minima: NLopt's controlled random search over the unit box
@@ -520,7 +525,8 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
     // order selection the warm start from M - 1 gives each M another route, and the stage runs
     // at every M, so it gets less.
     const int per_operator = o.operators > 0 ? 500 : 150;
-    opt.set_maxeval(o.global_evaluations > 0 ? o.global_evaluations : per_operator * static_cast<int>(m));
+    opt.set_maxeval(o.global_evaluations > 0 ? o.global_evaluations
+                                             : per_operator * static_cast<int>(m));
     nlopt::srand(o.seed + 7919u * static_cast<unsigned>(round));
     struct Ctx {
       const Data* d;
@@ -545,8 +551,8 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
       // NLopt stops on round-off or budget; the best point seen is kept in ctx.
     }
     const std::vector<double> thr = d.sb.thresholds(ctx.best_s);
-    const Fit f = local_search(d, ctx.best_s, start_rho(d, thr), o,
-                               std::min(best.percent, previous_percent));
+    const Fit f =
+        local_search(d, ctx.best_s, start_rho(d, thr), o, std::min(best.percent, previous_percent));
     record("nlopt-crs2", thr, f);
     if (o.operators > 0) refine_initial_state(d, best, o, false, rep);
     relocate_weakest();
@@ -560,23 +566,26 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
 
 std::vector<double> nlr_thresholds_from_coordinates(std::span<const double> s, double lower,
                                                     double upper) {
-  FRICTION_CHECK(lower > 0.0 && upper > lower, "nlr: threshold bounds must satisfy 0 < lower < upper");
+  FRICTION_CHECK(lower > 0.0 && upper > lower,
+                 "nlr: threshold bounds must satisfy 0 < lower < upper");
   return detail::StickBreaking{lower, upper}.thresholds(s);
 }
 
 std::vector<double> nlr_coordinates_from_thresholds(std::span<const double> thresholds,
                                                     double lower, double upper) {
-  FRICTION_CHECK(lower > 0.0 && upper > lower, "nlr: threshold bounds must satisfy 0 < lower < upper");
+  FRICTION_CHECK(lower > 0.0 && upper > lower,
+                 "nlr: threshold bounds must satisfy 0 < lower < upper");
   return detail::StickBreaking{lower, upper}.coordinates({thresholds.begin(), thresholds.end()});
 }
 
-void nlr_projected_residual(std::span<const double> x, std::span<const double> force,
-                            double lower, double upper, std::span<const double> s,
-                            std::span<const double> rho, Eigen::VectorXd& residual,
-                            Eigen::MatrixXd* jacobian, Eigen::VectorXd* stiffness) {
+void nlr_projected_residual(std::span<const double> x, std::span<const double> force, double lower,
+                            double upper, std::span<const double> s, std::span<const double> rho,
+                            Eigen::VectorXd& residual, Eigen::MatrixXd* jacobian,
+                            Eigen::VectorXd* stiffness) {
   FRICTION_CHECK(x.size() == force.size() && !x.empty(), "nlr: lengths differ");
   FRICTION_CHECK(s.size() == rho.size() && !s.empty(), "nlr: s and rho sizes differ");
-  FRICTION_CHECK(lower > 0.0 && upper > lower, "nlr: threshold bounds must satisfy 0 < lower < upper");
+  FRICTION_CHECK(lower > 0.0 && upper > lower,
+                 "nlr: threshold bounds must satisfy 0 < lower < upper");
   Data d;
   d.x = x;
   d.force = force;
@@ -602,8 +611,8 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
   FRICTION_CHECK(o.operators > 0 || o.max_operators > 0,
                  "identify_maxwell_slip: max_operators must be >= 1");
   for (std::size_t k = 0; k < x.size(); ++k)
-    FRICTION_CHECK(std::isfinite(x[k]) && std::isfinite(force[k]),
-                   "identify_maxwell_slip: sample ", k, " is not finite");
+    FRICTION_CHECK(std::isfinite(x[k]) && std::isfinite(force[k]), "identify_maxwell_slip: sample ",
+                   k, " is not finite");
 
   Data d;
   d.x = x;
@@ -639,7 +648,8 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
   double best_bic = std::numeric_limits<double>::infinity();
   std::size_t best_index = 0;
   for (std::size_t m = m_lo; m <= m_hi; ++m) {
-    Fit fit = fit_operators(d, m, previous.empty() ? nullptr : &previous, previous_percent, sc, o, rep);
+    Fit fit =
+        fit_operators(d, m, previous.empty() ? nullptr : &previous, previous_percent, sc, o, rep);
     previous = d.sb.thresholds(fit.s);
     previous_percent = fit.percent;
     SelectionRow row;
@@ -693,7 +703,8 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
     model.reset(std::span<const double>(rep.initial_deflections));
     rep.estimation_simulated.resize(x.size());
     for (std::size_t k = 0; k < x.size(); ++k)
-      rep.estimation_simulated[k] = model.step(Motion<double>{k > 0 ? x[k] - x[k - 1] : 0.0, 0.0, 0.0});
+      rep.estimation_simulated[k] =
+          model.step(Motion<double>{k > 0 ? x[k] - x[k - 1] : 0.0, 0.0, 0.0});
   }
   rep.estimation = compute_errors(force, rep.estimation_simulated);
   rep.noise_sigma = estimate_white_noise_sigma(force);
@@ -703,14 +714,17 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
   rep.convergence.initial_cost = best.start_percent;
   rep.convergence.final_cost = best.percent;
   rep.convergence.message = best.message;
-  if (!best.converged) rep.warnings.push_back("local search did not report convergence: " + best.message);
+  if (!best.converged)
+    rep.warnings.push_back("local search did not report convergence: " + best.message);
 
   // Parameters, standard errors, correlations.
   const Eigen::Index mi = static_cast<Eigen::Index>(m);
   for (std::size_t i = 0; i < m; ++i)
-    rep.parameters.push_back({"stiffness[" + std::to_string(i + 1) + "]", "N/m", p.stiffness[i], 0, p.stiffness[i], p.stiffness[i]});
+    rep.parameters.push_back({"stiffness[" + std::to_string(i + 1) + "]", "N/m", p.stiffness[i], 0,
+                              p.stiffness[i], p.stiffness[i]});
   for (std::size_t i = 0; i < m; ++i)
-    rep.parameters.push_back({"threshold[" + std::to_string(i + 1) + "]", "m", p.threshold[i], 0, p.threshold[i], p.threshold[i]});
+    rep.parameters.push_back({"threshold[" + std::to_string(i + 1) + "]", "m", p.threshold[i], 0,
+                              p.threshold[i], p.threshold[i]});
   rep.correlation = Eigen::MatrixXd::Identity(2 * mi, 2 * mi);
   if (o.covariance) {
     // Jacobian of the scaled force w.r.t. (log k, log Delta) and, as nuisance parameters, the
@@ -745,8 +759,8 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
         est.upper95 = est.value * std::exp(1.96 * se_log);
         if (est.upper95 / est.lower95 > 10.0) {
           std::ostringstream w;
-          w << est.name << ": 95 % interval [" << est.lower95 << ", " << est.upper95 << "] " << est.unit
-            << " spans more than an order of magnitude (poorly identified)";
+          w << est.name << ": 95 % interval [" << est.lower95 << ", " << est.upper95 << "] "
+            << est.unit << " spans more than an order of magnitude (poorly identified)";
           rep.warnings.push_back(w.str());
         }
         for (Eigen::Index b = 0; b < 2 * mi; ++b) {
@@ -774,7 +788,8 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
       rep.warnings.push_back("threshold[" + std::to_string(i + 1) +
                              "] is at the largest travel: the operator acts as a linear spring");
   }
-  rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
+  rep.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return result;
 }
 

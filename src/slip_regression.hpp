@@ -7,15 +7,15 @@
 // threshold with derivative (1, 0) and every initial deflection with (0, 1); since no operator
 // mixes with another, the Jet part of delta_i(t) is exactly
 // (d delta_i(t) / d Delta_i, d delta_i(t) / d delta_i(0)).  operator_trajectories computes that
-// recursion directly (identical numbers, a test checks it against the Jet run).  The second is the indicator "not yet
-// saturated" (1 until the operator first reaches a bound, 0 after), which is what the
-// initial-state estimation exploits.
+// recursion directly (identical numbers, a test checks it against the Jet run).  The second is the
+// indicator "not yet saturated" (1 until the operator first reaches a bound, 0 after), which is
+// what the initial-state estimation exploits.
 #pragma once
 
 #include <ceres/jet.h>
 
-#include <Eigen/Core>
 #include <Eigen/Cholesky>
+#include <Eigen/Core>
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
@@ -60,15 +60,18 @@ inline void operator_trajectories(std::span<const double> thresholds,
   }
   for (Eigen::Index i = 0; i < mi; ++i) {
     const double limit = thresholds[static_cast<std::size_t>(i)];
-    FRICTION_CHECK(std::isfinite(limit) && limit > 0.0, "Maxwell Slip: threshold[", i, "] = ",
-                   limit, " m must be finite and > 0");
+    FRICTION_CHECK(std::isfinite(limit) && limit > 0.0, "Maxwell Slip: threshold[", i,
+                   "] = ", limit, " m must be finite and > 0");
     double v = initial[static_cast<std::size_t>(i)], g_threshold = 0.0, g_initial = 1.0;
-    if (v > limit) v = limit, g_threshold = 1.0, g_initial = 0.0;
-    else if (v < -limit) v = -limit, g_threshold = -1.0, g_initial = 0.0;
+    if (v > limit)
+      v = limit, g_threshold = 1.0, g_initial = 0.0;
+    else if (v < -limit)
+      v = -limit, g_threshold = -1.0, g_initial = 0.0;
     double* delta = out.delta.col(i).data();
     if (!sensitivities) {
       for (Eigen::Index t = 0; t < n; ++t) {
-        const double dx = t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
+        const double dx =
+            t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
         const double u = v + dx;
         v = u > limit ? limit : (u < -limit ? -limit : u);
         delta[t] = v;
@@ -78,11 +81,15 @@ inline void operator_trajectories(std::span<const double> thresholds,
     double* dt = out.d_threshold.col(i).data();
     double* di = out.d_initial.col(i).data();
     for (Eigen::Index t = 0; t < n; ++t) {
-      const double dx = t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
+      const double dx =
+          t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
       const double u = v + dx;
-      if (u > limit) v = limit, g_threshold = 1.0, g_initial = 0.0;
-      else if (u < -limit) v = -limit, g_threshold = -1.0, g_initial = 0.0;
-      else v = u;
+      if (u > limit)
+        v = limit, g_threshold = 1.0, g_initial = 0.0;
+      else if (u < -limit)
+        v = -limit, g_threshold = -1.0, g_initial = 0.0;
+      else
+        v = u;
       delta[t] = v;
       dt[t] = g_threshold;
       di[t] = g_initial;
@@ -92,8 +99,7 @@ inline void operator_trajectories(std::span<const double> thresholds,
 
 inline OperatorTrajectories operator_trajectories(std::span<const double> thresholds,
                                                   std::span<const double> initial,
-                                                  std::span<const double> x,
-                                                  bool sensitivities) {
+                                                  std::span<const double> x, bool sensitivities) {
   OperatorTrajectories out;
   operator_trajectories(thresholds, initial, x, sensitivities, out);
   return out;
@@ -174,11 +180,13 @@ inline Eigen::VectorXd box_least_squares(const Eigen::MatrixXd& a, const Eigen::
     for (Eigen::Index j = 0; j < p; ++j)
       if (state[static_cast<std::size_t>(j)] != 0) rhs -= as.col(j) * z(j);
     Eigen::MatrixXd af(as.rows(), static_cast<Eigen::Index>(free.size()));
-    for (std::size_t k = 0; k < free.size(); ++k) af.col(static_cast<Eigen::Index>(k)) = as.col(free[k]);
+    for (std::size_t k = 0; k < free.size(); ++k)
+      af.col(static_cast<Eigen::Index>(k)) = as.col(free[k]);
     Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(af);
     qr.setThreshold(1e-12);
     const Eigen::VectorXd zf = qr.solve(rhs);
-    for (std::size_t k = 0; k < free.size(); ++k) target(free[k]) = zf(static_cast<Eigen::Index>(k));
+    for (std::size_t k = 0; k < free.size(); ++k)
+      target(free[k]) = zf(static_cast<Eigen::Index>(k));
   };
   // Fast path: the unconstrained solution is feasible (the usual case for stiffnesses).
   {
@@ -235,8 +243,10 @@ inline Eigen::VectorXd box_least_squares(const Eigen::MatrixXd& a, const Eigen::
       state[static_cast<std::size_t>(hit)] = hit_side;
       for (Eigen::Index j = 0; j < p; ++j) {  // others that landed on a bound
         if (state[static_cast<std::size_t>(j)] != 0) continue;
-        if (z(j) <= l(j)) z(j) = l(j), state[static_cast<std::size_t>(j)] = -1;
-        else if (z(j) >= h(j)) z(j) = h(j), state[static_cast<std::size_t>(j)] = +1;
+        if (z(j) <= l(j))
+          z(j) = l(j), state[static_cast<std::size_t>(j)] = -1;
+        else if (z(j) >= h(j))
+          z(j) = h(j), state[static_cast<std::size_t>(j)] = +1;
       }
     }
   }
@@ -259,7 +269,9 @@ struct Projector {
   Eigen::Index rank = 0;
 
   Projector() = default;
-  explicit Projector(const Eigen::MatrixXd& phi, double threshold = 1e-12) { compute(phi, threshold); }
+  explicit Projector(const Eigen::MatrixXd& phi, double threshold = 1e-12) {
+    compute(phi, threshold);
+  }
 
   /// (Re)factorise for `phi`, reusing storage when the sizes repeat.
   void compute(const Eigen::MatrixXd& phi, double threshold = 1e-12) {
@@ -340,7 +352,8 @@ struct Projector {
 
   Eigen::VectorXd derivative(const Eigen::VectorXd& a, const Eigen::VectorXd& w) const {
     if (use_gram_) {
-      return -(a - phis_ * gram_.solve(phis_.transpose() * a)) - phis_ * gram_.solve(w.cwiseQuotient(scale));
+      return -(a - phis_ * gram_.solve(phis_.transpose() * a)) -
+             phis_ * gram_.solve(w.cwiseQuotient(scale));
     }
     Eigen::VectorXd out = -(a - q_ * (q_.transpose() * a));
     Eigen::VectorXd wp = Eigen::VectorXd::Zero(rank);
@@ -348,15 +361,14 @@ struct Projector {
     for (Eigen::Index j = 0; j < w.size(); ++j)
       if (position_(j) < rank && w(j) != 0.0) wp(position_(j)) = w(j) / scale(j), any = true;
     if (any) {
-      const Eigen::VectorXd v =
-          r11_.transpose().template triangularView<Eigen::Lower>().solve(wp);
+      const Eigen::VectorXd v = r11_.transpose().template triangularView<Eigen::Lower>().solve(wp);
       out -= q_ * v;
     }
     return out;
   }
 
  private:
-  Eigen::MatrixXd phis_;     // unit-norm columns
+  Eigen::MatrixXd phis_;  // unit-norm columns
   Eigen::MatrixXd gram_matrix_;
   Eigen::MatrixXd small_;  // P x k scratch of derivatives_into
   Eigen::LLT<Eigen::MatrixXd> gram_;

@@ -24,24 +24,29 @@ constexpr double kViscous = 150.0;  // N s/m
 // Maxwell Slip plus a viscous term sigma2 * v (v from the displacement increments).
 Record with_viscous(Record r) {
   for (std::size_t k = 1; k < r.size(); ++k)
-    r.force[k] += kViscous * (r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]);
+    r.force[k] +=
+        kViscous * (r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]);
   return r;
 }
 
 void print(const IdentificationReport& rep) {
   for (const auto& row : rep.selection)
-    if (row.selected) std::cout << "  selected M=" << row.operators << " n=" << row.spring_order
-                                << " nx=" << row.input_order << " rss%=" << row.rss_sss_percent << "\n";
+    if (row.selected)
+      std::cout << "  selected M=" << row.operators << " n=" << row.spring_order
+                << " nx=" << row.input_order << " rss%=" << row.rss_sss_percent << "\n";
   for (const auto& p : rep.parameters)
     std::cout << "  " << p.name << " = " << p.value << " +- " << p.standard_error << "\n";
   for (const auto& w : rep.warnings) std::cout << "  warning: " << w << "\n";
-  std::cout << "  seconds " << rep.seconds << " estimation " << rep.estimation.rss_sss_percent << "%\n";
+  std::cout << "  seconds " << rep.seconds << " estimation " << rep.estimation.rss_sss_percent
+            << "%\n";
 }
 
 TEST(DnlrxIdentification, BeatsNlrOnValidationWhenFrictionHasAViscousTerm) {
   const auto sys = four_operator_system();
-  const Record est = with_viscous(synthetic_record(sys, 3000, 30e-6, 0, kSigma, 21, {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr));
-  const Record val = with_viscous(synthetic_record(sys, 3000, 25e-6, 1, kSigma, 22, {0, 1e-6, -4e-6, 8e-6}, nullptr));
+  const Record est = with_viscous(
+      synthetic_record(sys, 3000, 30e-6, 0, kSigma, 21, {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr));
+  const Record val = with_viscous(
+      synthetic_record(sys, 3000, 25e-6, 1, kSigma, 22, {0, 1e-6, -4e-6, 8e-6}, nullptr));
 
   NlrOptions no;
   no.max_operators = 5;
@@ -71,7 +76,8 @@ TEST(DnlrxIdentification, BeatsNlrOnValidationWhenFrictionHasAViscousTerm) {
   EXPECT_NEAR(g, kViscous / 1e-3, 0.1 * kViscous / 1e-3);
   for (std::size_t i = 1; i < dn.parameters.size(); ++i)
     EXPECT_GE(dn.parameters.threshold[i], dn.parameters.threshold[i - 1]);
-  for (const auto& p : dn.report.parameters) EXPECT_TRUE(std::isfinite(p.value) && std::isfinite(p.standard_error));
+  for (const auto& p : dn.report.parameters)
+    EXPECT_TRUE(std::isfinite(p.value) && std::isfinite(p.standard_error));
 }
 
 TEST(DnlrxIdentification, AnOperatorThatNeverSaturatesIsDetectedAndItsLagsDropped) {
@@ -88,7 +94,8 @@ TEST(DnlrxIdentification, AnOperatorThatNeverSaturatesIsDetectedAndItsLagsDroppe
   }
   for (double c : dn.report.correlation.reshaped()) EXPECT_TRUE(std::isfinite(c));
   bool warned = false;
-  for (const auto& w : dn.report.warnings) warned |= w.find("operator 3 never saturates") != std::string::npos;
+  for (const auto& w : dn.report.warnings)
+    warned |= w.find("operator 3 never saturates") != std::string::npos;
   EXPECT_TRUE(warned);
   EXPECT_EQ(dn.parameters.theta(2, 1), 0.0);
   EXPECT_EQ(dn.parameters.theta(2, 2), 0.0);
@@ -121,12 +128,14 @@ TEST(DnlrxIdentification, PreslidingOnlyRecordGivesFiniteParameters) {
 TEST(DnlrxIdentification, FreeRunOfAMaxwellSlipModelMatchesTheMaxwellSlipFreeRun) {
   // The same initial-state estimate and the same simulation for both forms of one model.
   const auto sys = four_operator_system();
-  const Record rec = synthetic_record(sys, 1500, 20e-6, 1, kSigma, 41, {1e-6, -2e-6, 5e-6, -3e-6}, nullptr);
+  const Record rec =
+      synthetic_record(sys, 1500, 20e-6, 1, kSigma, 41, {1e-6, -2e-6, 5e-6, -3e-6}, nullptr);
   const auto ms = free_run_maxwell_slip(sys, rec.time, rec.displacement, rec.force);
   const auto dn = free_run_dnlrx(DnlrxParameters<double>::from_maxwell_slip(sys), rec.time,
                                  rec.displacement, rec.force);
   ASSERT_EQ(ms.simulated.size(), dn.simulated.size());
-  for (std::size_t k = 0; k < ms.simulated.size(); ++k) ASSERT_NEAR(ms.simulated[k], dn.simulated[k], 1e-12);
+  for (std::size_t k = 0; k < ms.simulated.size(); ++k)
+    ASSERT_NEAR(ms.simulated[k], dn.simulated[k], 1e-12);
   EXPECT_NEAR(ms.errors.rss_sss_percent, dn.errors.rss_sss_percent, 1e-12);
 }
 

@@ -14,10 +14,12 @@ using friction::testing::four_operator_system;
 using friction::testing::synthetic_record;
 
 // Cost of a free run from the given state.
-double cost(const MaxwellSlipParameters<double>& p, const Record& rec, const std::vector<double>& d) {
+double cost(const MaxwellSlipParameters<double>& p, const Record& rec,
+            const std::vector<double>& d) {
   MaxwellSlip<double> m(p);
   m.reset(std::span<const double>(d));
-  const auto f = simulate(m, std::span<const double>(rec.time), std::span<const double>(rec.displacement));
+  const auto f =
+      simulate(m, std::span<const double>(rec.time), std::span<const double>(rec.displacement));
   return compute_errors(rec.force, f).rss;
 }
 
@@ -49,14 +51,16 @@ TEST(InitialState, RecoversItWithinNoiseAndBeatsTheVirginState) {
   const auto run = free_run_maxwell_slip(sys, rec.time, rec.displacement, rec.force);
   EXPECT_NEAR(run.initial_deflections[3], d0[3], 0.02 * sys.threshold[3]);
   EXPECT_NEAR(run.initial_deflections[2], d0[2], 0.05 * sys.threshold[2]);
-  for (std::size_t i = 0; i < 4; ++i) EXPECT_LE(std::abs(run.initial_deflections[i]), sys.threshold[i]);
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_LE(std::abs(run.initial_deflections[i]), sys.threshold[i]);
   // At least as good as the true state (it is the minimiser), and much better than virgin.
   EXPECT_LE(run.errors.rss, cost(sys, rec, d0) * (1 + 1e-9));
   EXPECT_LT(run.errors.rss, 0.5 * cost(sys, rec, {0, 0, 0, 0}));
 }
 
 TEST(InitialState, SpringFilterFormWithLags) {
-  // A two-tap spring filter: Fhat = sum_i (a_i delta_i(t) + b_i delta_i(t-1)), record at rest before.
+  // A two-tap spring filter: Fhat = sum_i (a_i delta_i(t) + b_i delta_i(t-1)), record at rest
+  // before.
   const std::vector<double> thr{2e-6, 9e-6};
   Eigen::MatrixXd filter(2, 2);
   filter << 3e4, 1e4, 2e4, -5e3;
@@ -70,7 +74,9 @@ TEST(InitialState, SpringFilterFormWithLags) {
     ops.step(Motion<double>{k > 0 ? x[k] - x[k - 1] : 0.0, 0.0, 0.0});
     const auto d = ops.deflections();
     f[k] = 0;
-    for (std::size_t i = 0; i < 2; ++i) f[k] += filter(static_cast<Eigen::Index>(i), 0) * d[i] + filter(static_cast<Eigen::Index>(i), 1) * prev[i];
+    for (std::size_t i = 0; i < 2; ++i)
+      f[k] += filter(static_cast<Eigen::Index>(i), 0) * d[i] +
+              filter(static_cast<Eigen::Index>(i), 1) * prev[i];
     prev.assign(d.begin(), d.end());
   }
   const auto d = estimate_initial_deflections(x, f, thr, filter);
@@ -79,8 +85,10 @@ TEST(InitialState, SpringFilterFormWithLags) {
 
 TEST(InitialState, RejectsMismatchedInput) {
   const std::vector<double> x(10, 0.0), f(9, 0.0), thr{1e-6};
-  EXPECT_THROW(estimate_initial_deflections(x, f, thr, Eigen::MatrixXd::Ones(1, 1)), InvalidParameter);
-  EXPECT_THROW(estimate_initial_deflections(x, std::vector<double>(10, 0.0), thr, Eigen::MatrixXd::Ones(2, 1)),
+  EXPECT_THROW(estimate_initial_deflections(x, f, thr, Eigen::MatrixXd::Ones(1, 1)),
+               InvalidParameter);
+  EXPECT_THROW(estimate_initial_deflections(x, std::vector<double>(10, 0.0), thr,
+                                            Eigen::MatrixXd::Ones(2, 1)),
                InvalidParameter);
 }
 

@@ -31,20 +31,22 @@ const RoundTrip& round_trip() {
   static const RoundTrip rt = [] {
     RoundTrip r;
     const auto sys = four_operator_system();
-    r.estimation = synthetic_record(sys, 3000, 30e-6, 0, kSigma, 11, {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr);
+    r.estimation =
+        synthetic_record(sys, 3000, 30e-6, 0, kSigma, 11, {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr);
     r.validation = synthetic_record(sys, 3000, 25e-6, 1, kSigma, 12, {-1e-6, 3e-6, 0.0, 12e-6},
                                     &r.validation_noise);
     NlrOptions o;
     o.max_operators = 6;
-    r.result = identify_maxwell_slip(r.estimation.time, r.estimation.displacement, r.estimation.force, o);
+    r.result =
+        identify_maxwell_slip(r.estimation.time, r.estimation.displacement, r.estimation.force, o);
     const auto& rep = r.result.report;
     std::cout << "M table:\n";
     for (const auto& row : rep.selection)
-      std::cout << "  M=" << row.operators << " rss%=" << row.rss_sss_percent << " BIC=" << row.criterion
-                << (row.selected ? " *" : "") << "\n";
+      std::cout << "  M=" << row.operators << " rss%=" << row.rss_sss_percent
+                << " BIC=" << row.criterion << (row.selected ? " *" : "") << "\n";
     for (const auto& p : rep.parameters)
-      std::cout << "  " << p.name << " = " << p.value << " +- " << p.standard_error << " [" << p.lower95
-                << ", " << p.upper95 << "]\n";
+      std::cout << "  " << p.name << " = " << p.value << " +- " << p.standard_error << " ["
+                << p.lower95 << ", " << p.upper95 << "]\n";
     for (const auto& s : rep.starts)
       std::cout << "  start M=" << s.operators << " " << s.kind << " " << s.start_percent << " -> "
                 << s.final_percent << (s.distinct ? " distinct" : "") << "\n";
@@ -92,7 +94,8 @@ TEST(Nlr, ValidationErrorIsAtTheNoiseFloor) {
   std::cout << "validation " << run.errors.rss_sss_percent << "% floor " << floor << "%\n";
   EXPECT_LE(run.errors.rss_sss_percent, 1.2 * floor);
   // and the estimation error is at its own floor too (the fit is not stuck in a local minimum)
-  EXPECT_LE(rt.result.report.estimation.rss_sss_percent, 1.2 * rt.result.report.noise_floor_percent + 1e-3);
+  EXPECT_LE(rt.result.report.estimation.rss_sss_percent,
+            1.2 * rt.result.report.noise_floor_percent + 1e-3);
 }
 
 TEST(Nlr, ConstraintsHold) {
@@ -117,7 +120,8 @@ TEST(Nlr, ConstraintsHold) {
 
 TEST(Nlr, ProjectedJacobianMatchesFiniteDifferences) {
   const auto sys = four_operator_system();
-  const auto rec = synthetic_record(sys, 1500, 30e-6, 0, kSigma, 5, {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr);
+  const auto rec =
+      synthetic_record(sys, 1500, 30e-6, 0, kSigma, 5, {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr);
   const double lo = displacement_resolution(rec.displacement);
   const double hi = largest_travel(rec.displacement);
   // A point away from the optimum (large residual, so both Golub-Pereyra terms matter).
@@ -132,8 +136,10 @@ TEST(Nlr, ProjectedJacobianMatchesFiniteDifferences) {
   for (int p = 0; p < 8; ++p) {
     std::vector<double> sp = s, sm = s, rp = rho, rm = rho;
     const double h = 1e-7;
-    if (p < 4) sp[p] += h, sm[p] -= h;
-    else rp[p - 4] += h, rm[p - 4] -= h;
+    if (p < 4)
+      sp[p] += h, sm[p] -= h;
+    else
+      rp[p - 4] += h, rm[p - 4] -= h;
     Eigen::VectorXd fp, fm;
     nlr_projected_residual(rec.displacement, rec.force, lo, hi, sp, rp, fp, nullptr);
     nlr_projected_residual(rec.displacement, rec.force, lo, hi, sm, rm, fm, nullptr);
@@ -201,8 +207,10 @@ TEST(Nlr, BoxLeastSquaresMatchesTheActiveSetOnTheFullProblem) {
   EXPECT_EQ(at_bound[1], 1);
   for (Eigen::Index j = 0; j < 6; ++j) {
     EXPECT_GE(z(j), 0.0);
-    if (at_bound[static_cast<std::size_t>(j)]) EXPECT_GE(g(j), -1e-9 * b.norm()) << j;
-    else EXPECT_NEAR(g(j), 0.0, 1e-9 * b.norm()) << j;
+    if (at_bound[static_cast<std::size_t>(j)])
+      EXPECT_GE(g(j), -1e-9 * b.norm()) << j;
+    else
+      EXPECT_NEAR(g(j), 0.0, 1e-9 * b.norm()) << j;
   }
 }
 
@@ -212,8 +220,8 @@ TEST(Nlr, FixedOrderAndJointSolverAgree) {
   o.operators = 4;
   o.solver = NlrSolver::Joint;
   o.covariance = false;
-  const auto joint = identify_maxwell_slip(rt.estimation.time, rt.estimation.displacement,
-                                           rt.estimation.force, o);
+  const auto joint =
+      identify_maxwell_slip(rt.estimation.time, rt.estimation.displacement, rt.estimation.force, o);
   ASSERT_EQ(joint.report.selection.size(), 1u);
   EXPECT_NEAR(joint.report.estimation.rss_sss_percent, rt.result.report.estimation.rss_sss_percent,
               0.05 * rt.result.report.estimation.rss_sss_percent);

@@ -56,8 +56,8 @@ namespace friction {
 
 /// Where the thresholds of DNLRX come from (see the header comment for the measurements).
 enum class DnlrxThresholds {
-  Nlr,                         ///< NLR's thresholds for each M, never changed
-  ReoptimiseSelected,          ///< NLR's, re-optimised with the filters for the selected orders only
+  Nlr,                 ///< NLR's thresholds for each M, never changed
+  ReoptimiseSelected,  ///< NLR's, re-optimised with the filters for the selected orders only
   ReoptimisePerOperatorCount,  ///< re-optimised for every M (smallest filters) before the orders
                                ///< are compared, and again for the selected orders (default)
 };
@@ -70,14 +70,14 @@ struct DnlrxOptions {
   long spring_order = -1;            ///< >= 0: this n only
   long input_order = -1;             ///< >= 0: this nx only
   DnlrxThresholds thresholds = DnlrxThresholds::ReoptimisePerOperatorCount;
-  double rank_tolerance = 1e-10;     ///< floor of the data-derived rank tolerance (header comment)
+  double rank_tolerance = 1e-10;  ///< floor of the data-derived rank tolerance (header comment)
   bool covariance = true;
-  NlrOptions nlr;                    ///< for the thresholds (its operator counts are overridden)
+  NlrOptions nlr;  ///< for the thresholds (its operator counts are overridden)
 };
 
 struct DnlrxResult {
   DnlrxParameters<double> parameters;
-  IdentificationReport report;       ///< parameters: spring_filter[i,j], input_filter[j], threshold[i]
+  IdentificationReport report;  ///< parameters: spring_filter[i,j], input_filter[j], threshold[i]
 };
 
 /// Identify a DNLRX model from displacement `x` [m] and force [N] sampled at `time` [s].
@@ -99,8 +99,7 @@ struct DnlrxFreeRun {
   std::vector<double> simulated;
   ErrorMetrics errors;
 };
-DnlrxFreeRun free_run_dnlrx(const DnlrxParameters<double>& parameters,
-                            std::span<const double> time, std::span<const double> x,
-                            std::span<const double> force);
+DnlrxFreeRun free_run_dnlrx(const DnlrxParameters<double>& parameters, std::span<const double> time,
+                            std::span<const double> x, std::span<const double> force);
 
 }  // namespace friction

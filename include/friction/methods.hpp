@@ -16,8 +16,8 @@
 // Extensions.  `MethodOptions::extensions` asks for pieces of methods.md section 7: the base is
 // identified by its method, then the pieces are estimated on the same record
 // (identify_extensions, extension_identification.hpp; every base is refitted jointly with them,
-// LuGre and DNLRX after a first fit with the base held).  The returned model carries the pieces, its
-// report the refitted figures, and `extensions` the pieces' report.
+// LuGre and DNLRX after a first fit with the base held).  The returned model carries the pieces,
+// its report the refitted figures, and `extensions` the pieces' report.
 #pragma once
 
 #include <nlohmann/json.hpp>

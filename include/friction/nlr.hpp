@@ -62,8 +62,9 @@
 //    The stage is skipped when the best start is already at the noise floor (RSS below
 //    N sigma^2 + 3 sqrt(2N) sigma^2, sigma = estimate_white_noise_sigma).
 //  * Uncertainty: marginal covariance of (log k, log Delta) at the optimum with the relative
-//    initial deflections rho as nuisance parameters, scaled by sigma^2 = RSS / (N - 3M); 95 % intervals are log-normal,
-//    value * exp(+-1.96 se_log).  A rank-deficient covariance is a warning, never a NaN.
+//    initial deflections rho as nuisance parameters, scaled by sigma^2 = RSS / (N - 3M); 95 %
+//    intervals are log-normal, value * exp(+-1.96 se_log).  A rank-deficient covariance is a
+//    warning, never a NaN.
 //
 // Variable projection versus joint optimisation of (log k, s, rho), both with the same exact
 // Jacobian machinery (bench_identification, one run each, CPU time on a shared 2-core machine):
@@ -95,16 +96,16 @@ enum class NlrSolver {
 };
 
 struct NlrOptions {
-  std::size_t max_operators = 8;   ///< M = 1..max_operators are fitted and compared by BIC
-  std::size_t operators = 0;       ///< > 0: fit this M only (no selection)
+  std::size_t max_operators = 8;  ///< M = 1..max_operators are fitted and compared by BIC
+  std::size_t operators = 0;      ///< > 0: fit this M only (no selection)
   NlrSolver solver = NlrSolver::VariableProjection;
-  bool global_stage = true;        ///< NLopt stage when the starts disagree
-  double stall_tolerance = 0.01;   ///< relative difference of two minima that makes them distinct
-  int global_evaluations = 0;      ///< NLopt budget per M; 0: 500 M at a fixed M, 150 M in selection
-  int max_iterations = 100;        ///< Ceres iterations per local search
+  bool global_stage = true;       ///< NLopt stage when the starts disagree
+  double stall_tolerance = 0.01;  ///< relative difference of two minima that makes them distinct
+  int global_evaluations = 0;     ///< NLopt budget per M; 0: 500 M at a fixed M, 150 M in selection
+  int max_iterations = 100;       ///< Ceres iterations per local search
   double function_tolerance = 1e-8;  ///< Ceres: stop when |cost change| / cost falls below
-  unsigned seed = 1;               ///< NLopt's random seed (results are reproducible)
-  bool covariance = true;          ///< standard errors and correlations
+  unsigned seed = 1;                 ///< NLopt's random seed (results are reproducible)
+  bool covariance = true;            ///< standard errors and correlations
   /// The thorough initial-state refinement of the returned fit (nlr.cpp).  DNLRX turns it off in
   /// its order selection: it takes only NLR's minima per M and refines its own model.
   bool refine_initial_state = true;
@@ -124,10 +125,10 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
 /// The projected (concentrated) residual r = (F - Phi k*) / rms(F) and, when `jacobian` is not
 /// null, its exact derivative with respect to (s, rho) (N x 2M, s first), as given to Ceres.
 /// `lower`/`upper` are the threshold bounds q and L.  Exposed for tests; `stiffness` receives k*.
-void nlr_projected_residual(std::span<const double> x, std::span<const double> force,
-                            double lower, double upper, std::span<const double> s,
-                            std::span<const double> rho, Eigen::VectorXd& residual,
-                            Eigen::MatrixXd* jacobian, Eigen::VectorXd* stiffness = nullptr);
+void nlr_projected_residual(std::span<const double> x, std::span<const double> force, double lower,
+                            double upper, std::span<const double> s, std::span<const double> rho,
+                            Eigen::VectorXd& residual, Eigen::MatrixXd* jacobian,
+                            Eigen::VectorXd* stiffness = nullptr);
 
 /// Thresholds [m] for stick-breaking coordinates s in [0,1]^M between `lower` and `upper`.
 std::vector<double> nlr_thresholds_from_coordinates(std::span<const double> s, double lower,
