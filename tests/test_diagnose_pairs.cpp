@@ -70,8 +70,12 @@ TEST_P(PairStudy, BothEffectsAreFoundAndTheChainHolds) {
   std::uniform_real_distribution<double> ratio(4.0, 5.0);
   std::vector<Injection> hidden;
   for (const Hidden& h : {c.first, c.second}) {
+    // The normal load's contribution is set by the swing of the normal force, not by the
+    // friction coefficient (N0 = F0 / mu): its magnitude stays at the nominal coefficient.
     const double m =
-        magnitude_for_ratio(h.effect, h.nominal, ratio(gen), kSigma, lag, ex, kSamples);
+        h.effect == Injected::normal
+            ? h.nominal
+            : magnitude_for_ratio(h.effect, h.nominal, ratio(gen), kSigma, lag, ex, kSamples);
     hidden.push_back({h.effect, m, lag});
     ASSERT_GE(effect_contribution(h.effect, m, lag, ex, kSamples), 2.95 * kSigma);
   }
@@ -134,6 +138,10 @@ const PairCase kPairs[] = {
     {"inertia_offset_strokes",
      {Injected::inertia, 1.0, "mass", 0.15},
      {Injected::offset, 0.01, "offset", 0.15},
+     true},
+    {"normal_load_viscous_strokes",
+     {Injected::normal, 0.4, "friction_coefficient", 0.15},
+     {Injected::viscous, 20.0, "viscous", 0.2},
      true},
 };
 
