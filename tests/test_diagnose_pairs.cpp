@@ -143,6 +143,10 @@ const PairCase kPairs[] = {
      {Injected::normal, 0.4, "friction_coefficient", 0.15},
      {Injected::viscous, 20.0, "viscous", 0.2},
      true},
+    {"normal_load_viscous",
+     {Injected::normal, 0.4, "friction_coefficient", 0.15},
+     {Injected::viscous, 20.0, "viscous", 0.2},
+     false},
 };
 
 INSTANTIATE_TEST_SUITE_P(Pairs, PairStudy, ::testing::ValuesIn(kPairs),

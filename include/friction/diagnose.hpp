@@ -59,7 +59,11 @@
 //          for the missing element than describing an effect, and the finding is then withheld
 //          with a warning that the baseline may be short of operators.  When the selection chose
 //          M freely, BIC already judged M + 1 not worth its two parameters, so its drop is below
-//          2 ln N RSS/N (0.4 % of RSS here) and the third part changes nothing;
+//          2 ln N RSS/N (0.4 % of RSS here) and the third part changes nothing.  The reference is
+//          measured on the baseline; once pieces are accepted it is scaled by the share of the
+//          baseline's misfit (RSS above the floor) that is left, i.e. one more operator is taken
+//          to remove the same share of what remains (unscaled, a normal-load piece that removed
+//          99 % of the misfit left a real viscous term below the baseline's figure);
 //      (c) it lowers the validation error (RSS/SSS % on the validation record, initial state
 //          estimated there).
 //    Greedy: each round fits every remaining candidate on top of the accepted ones and accepts,
