@@ -356,7 +356,8 @@ Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, 
 // carried the intervals' misses (NLR coverage 31-36 of 40 per parameter before, 36-40 after).  So
 // the fit is re-polished from that initial state while it improves: quickly after every stage at a
 // fixed M, and thoroughly once for the M that is returned (during the order selection only that
-// one: the quick passes at every M made DNLRX's selection 0.5 s slower for no change of its table).
+// one: the quick passes at every M made DNLRX's selection about 0.5 s slower on its benchmark
+// record, where it selected the same model with them and without them).
 void refine_initial_state(const Data& d, Fit& best, const NlrOptions& o, bool thorough,
                           IdentificationReport& rep) {
   const std::size_t m = best.s.size();
