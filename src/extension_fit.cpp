@@ -116,16 +116,7 @@ struct ExtendedCost {
       std::vector<T> d(m);
       for (std::size_t i = 0; i < m; ++i) d[i] = p[1][i] * exp(p[0][m + i]);
       model.base().reset(std::span<const T>(d));
-      const Record& r = *record;
-      const std::size_t n = r.size();
-      // Reused between evaluations (per thread and scalar type): no allocation per evaluation.
-      thread_local std::vector<T> x, f;
-      x.resize(n);
-      f.resize(n);
-      for (std::size_t k = 0; k < n; ++k) x[k] = T(r.displacement[k]);
-      simulate_extended(model, std::span<const double>(r.time), std::span<const T>(x),
-                        std::span<const double>(r.normal), std::span<T>(f));
-      for (std::size_t k = 0; k < n; ++k) residual[k] = (T(r.force[k]) - f[k]) * scale;
+      extended_residuals(model, *record, scale, residual);
     } catch (const InvalidParameter&) {
       return false;  // outside the domain: Ceres rejects the step
     }

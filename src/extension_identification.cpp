@@ -256,15 +256,7 @@ struct FamilyCost {
     try {
       auto model = family.template make<T>(p[0], std::move(ext));
       family.template set_state<T>(model, p[0], p[1]);
-      const Record& r = *record;
-      const std::size_t n = r.size();
-      thread_local std::vector<T> x, f;
-      x.resize(n);
-      f.resize(n);
-      for (std::size_t k = 0; k < n; ++k) x[k] = T(r.displacement[k]);
-      simulate_extended(model, std::span<const double>(r.time), std::span<const T>(x),
-                        std::span<const double>(r.normal), std::span<T>(f));
-      for (std::size_t k = 0; k < n; ++k) residual[k] = (T(r.force[k]) - f[k]) * scale;
+      extended_residuals(model, *record, scale, residual);
     } catch (const InvalidParameter&) {
       return false;
     }

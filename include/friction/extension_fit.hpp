@@ -27,6 +27,22 @@
 
 namespace friction {
 
+/// Residuals (F - Fhat) * scale of `model`'s free run on the record, from the state the model
+/// holds: the loop of every extension cost functor (Maxwell Slip here, the other bases in
+/// extension_identification.cpp).  The displacement buffers are reused between evaluations (per
+/// thread and scalar type), so an evaluation does not allocate.
+template <class Model, typename T>
+void extended_residuals(Model& model, const Record& r, double scale, T* residual) {
+  const std::size_t n = r.size();
+  thread_local std::vector<T> x, f;
+  x.resize(n);
+  f.resize(n);
+  for (std::size_t k = 0; k < n; ++k) x[k] = T(r.displacement[k]);
+  simulate_extended(model, std::span<const double>(r.time), std::span<const T>(x),
+                    std::span<const double>(r.normal), std::span<T>(f));
+  for (std::size_t k = 0; k < n; ++k) residual[k] = (T(r.force[k]) - f[k]) * scale;
+}
+
 /// Free run of an extended Maxwell Slip model in double, with the regime of every sample (the
 /// context is built exactly as simulate_extended builds it; tests compare the two).
 struct ExtendedSlipRun {
