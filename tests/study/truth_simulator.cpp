@@ -222,9 +222,7 @@ Trace simulate(const System& sys, const Excitation& motion, const NormalProgram*
       out.clean[k] = force;
       out.velocity[k] = motion.v(t_rec);
       out.acceleration[k] = motion.a(t_rec);
-      double xs = motion.x(t_rec) + m.x_offset;
-      if (m.quantum > 0) xs = m.quantum * std::nearbyint(xs / m.quantum);
-      out.position[k] = xs;
+      out.position[k] = motion.x(t_rec) + m.x_offset;
       out.sliding[k] = all_at_limit;
       if (normal) out.normal[k] = normal->at(t_rec);
     }
@@ -254,6 +252,10 @@ Trace simulate(const System& sys, const Excitation& motion, const NormalProgram*
 
   std::mt19937_64 gen(m.noise_seed);
   std::normal_distribution<double> white(0.0, 1.0);
+  for (double& xs : out.position) {
+    if (m.position_noise > 0) xs += m.position_noise * white(gen);
+    if (m.quantum > 0) xs = m.quantum * std::nearbyint(xs / m.quantum);
+  }
   const double phi = m.noise_phi, innovation = std::sqrt(1 - phi * phi);
   double e = m.noise_sigma * white(gen);
   for (std::size_t k = 0; k < n; ++k) {

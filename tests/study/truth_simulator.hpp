@@ -35,7 +35,8 @@
 // reversals inside a step and from the level's change over a step; it falls as the grid is refined
 // (test_truth_simulator shows it).
 //
-// Measurement.  The encoder quantises x + x_offset to multiples of `quantum`; the force gets
+// Measurement.  The encoder quantises x + x_offset (plus white sensor noise, for an analog sensor)
+// to multiples of `quantum`; the force gets
 // stationary noise of standard deviation sigma, white or AR(1) with coefficient phi
 // (e_k = phi e_{k-1} + sqrt(1 - phi^2) sigma w_k).  The normal force, when recorded, is exact.
 #pragma once
@@ -124,13 +125,14 @@ struct System {
 struct Measurement {
   double sampling_rate = 1000;  ///< [Hz]
   std::size_t samples = 4000;
-  double warm_up = 1.0;    ///< [s] simulated before the first sample (from a virgin state)
-  double time_origin = 0;  ///< t of the first sample as written [s]
-  double quantum = 1e-8;   ///< encoder step [m]; 0: no quantisation
-  double x_offset = 0;     ///< added to x before quantisation [m]
-  double noise_sigma = 0;  ///< [N]
-  double noise_phi = 0;    ///< AR(1) coefficient, 0 = white
-  int refine = 16;         ///< fine steps per sample, >= 10
+  double warm_up = 1.0;       ///< [s] simulated before the first sample (from a virgin state)
+  double time_origin = 0;     ///< t of the first sample as written [s]
+  double quantum = 1e-8;      ///< encoder step [m]; 0: no quantisation
+  double x_offset = 0;        ///< added to x before quantisation [m]
+  double position_noise = 0;  ///< white noise on x before quantisation (analog sensor) [m]
+  double noise_sigma = 0;     ///< [N]
+  double noise_phi = 0;       ///< AR(1) coefficient, 0 = white
+  int refine = 16;            ///< fine steps per sample, >= 10
   std::uint64_t noise_seed = 1;
 };
 
