@@ -52,8 +52,10 @@ std::unique_ptr<truth::Excitation> motion(const std::string& kind, int run, doub
     for (int round = 0; round < 3; ++round)
       for (int j = 0; j < 5; ++j) {
         const double s = speeds[(j * 3 + round + run) % 5];
-        for (auto [v, d] : {std::pair{direction * s, 150e-6 / s}, {0.0, 0.12},
-                            {-direction * 2e-5, 3e-6 / 2e-5}, {direction * 2e-5, 3e-6 / 2e-5},
+        for (auto [v, d] : {std::pair{direction * s, 150e-6 / s},
+                            {0.0, 0.12},
+                            {-direction * 2e-5, 3e-6 / 2e-5},
+                            {direction * 2e-5, 3e-6 / 2e-5},
                             {0.0, 0.12}}) {
           p.velocity.push_back(v);
           p.duration.push_back(d);
@@ -100,8 +102,7 @@ int main(int argc, char** argv) {
       out << "time,displacement,force\n";
       char line[128];
       for (std::size_t k = 0; k < t.time.size(); ++k) {
-        std::snprintf(line, sizeof line, "%.4f,%.9g,%.7g\n", t.time[k], t.position[k],
-                      t.force[k]);
+        std::snprintf(line, sizeof line, "%.4f,%.9g,%.7g\n", t.time[k], t.position[k], t.force[k]);
         out << line;
       }
     }

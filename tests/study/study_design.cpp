@@ -514,6 +514,49 @@ StudyRecord make_record(const RecordSpec& spec) {
   return r;
 }
 
+StudyRecord twin_without(const StudyRecord& r, const std::vector<std::string>& effects) {
+  StudyRecord t;
+  t.spec = r.spec;
+  t.system = r.system;
+  for (const std::string& e : effects) t.system = without(t.system, e);
+  t.spec.effects.clear();
+  for (const std::string& e : r.spec.effects)
+    if (!has(effects, e)) t.spec.effects.push_back(e);
+  t.expected = t.spec.effects;
+  std::sort(t.expected.begin(), t.expected.end());
+  t.estimation = r.estimation;
+  t.validation = r.validation;
+  t.motion_estimation = r.motion_estimation;
+  t.motion_validation = r.motion_validation;
+  t.normal_estimation = r.normal_estimation;
+  t.normal_validation = r.normal_validation;
+  const NormalProgram* ne = t.normal_estimation ? &*t.normal_estimation : nullptr;
+  const NormalProgram* nv = t.normal_validation ? &*t.normal_validation : nullptr;
+  t.trace_estimation = simulate(t.system, *t.motion_estimation, ne, t.estimation);
+  t.trace_validation = simulate(t.system, *t.motion_validation, nv, t.validation);
+  for (const TrueParameter& p : r.truth)
+    if (!has(effects, p.effect)) t.truth.push_back(p);
+  for (const auto& [e, c] : r.contribution)
+    if (!has(effects, e)) t.contribution[e] = c;
+  t.travel = r.travel;
+  t.median_sliding_speed = r.median_sliding_speed;
+  double noise = 0, total = 0;
+  for (std::size_t k = 0; k < t.trace_validation.force.size(); ++k) {
+    const double e = t.trace_validation.force[k] - t.trace_validation.clean[k];
+    noise += e * e;
+    total += t.trace_validation.force[k] * t.trace_validation.force[k];
+  }
+  t.true_floor_percent = 100 * noise / total;
+  t.format = r.format;
+  t.has_presliding_reversals = r.has_presliding_reversals;
+  t.has_rests = r.has_rests;
+  t.both_directions = r.both_directions;
+  t.distinct_speeds = r.distinct_speeds;
+  for (const char* level : {"stribeck", "drift", "position-dependence", "normal-load"})
+    t.level_varies = t.level_varies || has(t.spec.effects, level);
+  return t;
+}
+
 std::string StudyRecord::read_options() const {
   std::vector<std::string> units;
   if (format.time_unit != "s") units.push_back("time=" + format.time_unit);

@@ -72,7 +72,7 @@ struct StudyRecord {
   std::vector<std::string> expected;  ///< sorted names a diagnosis should give
   System system;
   Measurement estimation, validation;
-  std::unique_ptr<Excitation> motion_estimation, motion_validation;
+  std::shared_ptr<const Excitation> motion_estimation, motion_validation;
   std::optional<NormalProgram> normal_estimation, normal_validation;
   Trace trace_estimation, trace_validation;
   std::vector<TrueParameter> truth;
@@ -100,6 +100,11 @@ StudyRecord make_record(const RecordSpec& spec);
 
 /// Writes the estimation or validation trace as the record's file format says.
 void write_csv(const StudyRecord& r, bool estimation, const std::string& path);
+
+/// The same record without `effects` (the same system otherwise, the same motions and the same
+/// noise realisation): what a base model without those pieces can reach.  Its expected set and
+/// truth drop the effects; its true floor is recomputed.
+StudyRecord twin_without(const StudyRecord& r, const std::vector<std::string>& effects);
 
 /// The section 7 names the study injects (nonlocal-memory is a baseline question, not a piece).
 const std::vector<std::string>& injectable_effects();
