@@ -358,6 +358,21 @@ FileFormat draw_format(Rng& rng, double travel, double fc, bool with_normal) {
   return f;
 }
 
+// The noise floor and the reachable floor of a record's validation trace.
+void set_floors(StudyRecord& r) {
+  const Trace& t = r.trace_validation;
+  const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;
+  const std::vector<double> reachable = reachable_force(r.system, t, nv, r.validation);
+  double noise = 0, gap = 0, total = 0;
+  for (std::size_t k = 0; k < t.force.size(); ++k) {
+    noise += (t.force[k] - t.clean[k]) * (t.force[k] - t.clean[k]);
+    gap += (t.force[k] - reachable[k]) * (t.force[k] - reachable[k]);
+    total += t.force[k] * t.force[k];
+  }
+  r.true_floor_percent = 100 * noise / total;
+  r.reachable_floor_percent = 100 * gap / total;
+}
+
 }  // namespace
 
 std::string family_name(Family f) {
@@ -479,13 +494,7 @@ StudyRecord make_record(const RecordSpec& spec) {
   r.trace_estimation = simulate(r.system, *r.motion_estimation, ne, r.estimation);
   r.trace_validation = simulate(r.system, *r.motion_validation, nv, r.validation);
   for (const std::string& e : spec.effects) r.contribution[e] = contribution_of(r, e);
-  double noise = 0, total = 0;
-  for (std::size_t k = 0; k < r.trace_validation.force.size(); ++k) {
-    const double e = r.trace_validation.force[k] - r.trace_validation.clean[k];
-    noise += e * e;
-    total += r.trace_validation.force[k] * r.trace_validation.force[k];
-  }
-  r.true_floor_percent = 100 * noise / total;
+  set_floors(r);
 
   // The truth, in SI and the library's names.
   const Effects& fx = r.system.effects;
@@ -540,13 +549,7 @@ StudyRecord twin_without(const StudyRecord& r, const std::vector<std::string>& e
     if (!has(effects, e)) t.contribution[e] = c;
   t.travel = r.travel;
   t.median_sliding_speed = r.median_sliding_speed;
-  double noise = 0, total = 0;
-  for (std::size_t k = 0; k < t.trace_validation.force.size(); ++k) {
-    const double e = t.trace_validation.force[k] - t.trace_validation.clean[k];
-    noise += e * e;
-    total += t.trace_validation.force[k] * t.trace_validation.force[k];
-  }
-  t.true_floor_percent = 100 * noise / total;
+  set_floors(t);
   t.format = r.format;
   t.has_presliding_reversals = r.has_presliding_reversals;
   t.has_rests = r.has_rests;

@@ -81,6 +81,11 @@ struct StudyRecord {
   double median_sliding_speed = 0;             ///< [m/s], validation record
   /// 100 N sigma^2 / sum F^2 on the validation record: the error a perfect model reaches.
   double true_floor_percent = 0;
+  /// 100 sum (F - F_reachable)^2 / sum F^2 on the validation record (reachable_force): the error
+  /// of the true system driven by the recorded displacement, which no model fed the measured
+  /// displacement can beat by more than chance.  Above the noise floor where the encoder's steps
+  /// are a visible force in presliding (k q against the force noise).
+  double reachable_floor_percent = 0;
   FileFormat format;
   /// Features that decide whether a pair of look-alike effects can be told apart.
   bool has_presliding_reversals = true, has_rests = false, both_directions = true;

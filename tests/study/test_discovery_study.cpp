@@ -205,7 +205,7 @@ struct Outcome {
   std::string id, summary, family;
   std::vector<std::string> expected, named, missing, extra;
   std::map<std::string, double> contribution;
-  double noise_sigma = 0, true_floor = 0;
+  double noise_sigma = 0, true_floor = 0, reachable_floor = 0;
   int status = -1;
   std::string error;  // a broken contract or a failed run
   double seconds = 0;
@@ -320,6 +320,7 @@ Outcome run_record(const RecordSpec& spec, const fs::path& dir) {
     o.contribution = r.contribution;
     o.noise_sigma = r.validation.noise_sigma;
     o.true_floor = r.true_floor_percent;
+    o.reachable_floor = r.reachable_floor_percent;
     const fs::path rd = dir / "records" / spec.id;
     fs::create_directories(rd);
     write_csv(r, true, (rd / "estimation.csv").string());
@@ -533,6 +534,7 @@ Criteria report(const StudyRun& run, const std::string& title, int tolerated = -
                           return j;
                         }()},
                        {"true_floor_percent", o.true_floor},
+                       {"reachable_floor_percent", o.reachable_floor},
                        {"baseline_validation_percent",
                         std::isfinite(o.baseline_percent) ? Json(o.baseline_percent) : Json()},
                        {"final_validation_percent",
@@ -625,9 +627,12 @@ TEST(DiscoveryStudy, EveryEffectPairsAndNoEffectOnAnNlrBaseline) {
 
 // Told the effect, it fits it (issue 7): on the single-effect records of the plan (frictional lag
 // with its partner), where the base model without the effect validates within 1.05 times the
-// true noise floor on the record's twin without it (the same system, motions and noise; so the
-// base is not the limit) and the effect contributes at least 3 times the noise, `identify
-// --extension X` must validate within 1.2 times the true floor on >= 95 % of them.
+// floor on the record's twin without it (the same system, motions and noise; so the base is not
+// the limit) and the effect contributes at least 3 times the noise, `identify --extension X` must
+// validate within 1.2 times the floor on >= 95 % of them.  The floor is the reachable one
+// (StudyRecord::reachable_floor_percent): the error of the true system driven by the recorded
+// displacement.  The force-noise floor alone is out of any model's reach where the encoder's steps
+// move the stiffest elements by more than the force noise (8-90 times it on some records).
 struct ToldOutcome {
   std::string id, summary, effects;
   double twin_percent = NAN, twin_floor = NAN, told_percent = NAN, floor = NAN;
@@ -643,8 +648,8 @@ ToldOutcome run_told(const RecordSpec& spec, const fs::path& dir) {
     const StudyRecord twin = twin_without(r, spec.effects);
     o.summary = r.summary();
     for (const auto& e : spec.effects) o.effects += (o.effects.empty() ? "" : ",") + e;
-    o.floor = r.true_floor_percent;
-    o.twin_floor = twin.true_floor_percent;
+    o.floor = r.reachable_floor_percent;
+    o.twin_floor = twin.reachable_floor_percent;
     const fs::path rd = dir / "records" / spec.id;
     fs::create_directories(rd);
     auto identify = [&](const StudyRecord& rec, const std::string& tag,

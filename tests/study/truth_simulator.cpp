@@ -148,6 +148,25 @@ double NormalProgram::at(double t) const {
   return mean * (1 + b1 * std::sin(2 * kPi * f1 * t + p1) + b2 * std::sin(2 * kPi * f2 * t + p2));
 }
 
+// The level L of the header comment at motion instant tau (t = tau + D since the record's start).
+static double slip_level(const System& sys, double tau, double delay, double x_abs, double v_felt,
+                         const NormalProgram* normal) {
+  const Effects& fx = sys.effects;
+  double l = 1;
+  if (fx.stribeck) {
+    const auto& s = *fx.stribeck;
+    l *= 1 + (s.static_force / sys.coulomb - 1) *
+                 std::exp(-std::pow(std::abs(v_felt) / s.velocity, s.exponent));
+  }
+  if (fx.drift_rate) l *= 1 + *fx.drift_rate * std::max(tau + delay, 0.0);
+  if (fx.position) {
+    const auto& p = *fx.position;
+    l *= 1 + p.relative_amplitude * std::sin(2 * kPi * x_abs / p.wavelength + p.phase);
+  }
+  if (fx.normal_load) l *= normal->at(tau) / normal->mean;
+  return l;
+}
+
 double System::threshold(std::size_t i) const {
   return elements.at(i).share * coulomb / elements.at(i).stiffness;
 }
@@ -165,21 +184,8 @@ Trace simulate(const System& sys, const Excitation& motion, const NormalProgram*
   const double asym = fx.asymmetry.value_or(0.0);
   const std::size_t n_el = sys.elements.size();
 
-  // The level L of the header comment at motion instant tau.
   auto level = [&](double tau, double x_abs, double v_felt) {
-    double l = 1;
-    if (fx.stribeck) {
-      const auto& s = *fx.stribeck;
-      l *= 1 + (s.static_force / sys.coulomb - 1) *
-                   std::exp(-std::pow(std::abs(v_felt) / s.velocity, s.exponent));
-    }
-    if (fx.drift_rate) l *= 1 + *fx.drift_rate * std::max(tau + delay, 0.0);
-    if (fx.position) {
-      const auto& p = *fx.position;
-      l *= 1 + p.relative_amplitude * std::sin(2 * kPi * x_abs / p.wavelength + p.phase);
-    }
-    if (fx.normal_load) l *= normal->at(tau) / normal->mean;
-    return l;
+    return slip_level(sys, tau, delay, x_abs, v_felt, normal);
   };
 
   Trace out;
@@ -191,6 +197,8 @@ Trace simulate(const System& sys, const Excitation& motion, const NormalProgram*
   out.velocity.resize(n);
   out.acceleration.resize(n);
   out.sliding.resize(n);
+  out.felt_velocity.resize(n);
+  out.motion_acceleration.resize(n);
   if (normal) out.normal.resize(n);
 
   // Fine grid tau_j = -delay + j h; sample k at j = k refine.  The warm-up starts from a virgin
@@ -224,6 +232,9 @@ Trace simulate(const System& sys, const Excitation& motion, const NormalProgram*
       out.acceleration[k] = motion.a(t_rec);
       out.position[k] = motion.x(t_rec) + m.x_offset;
       out.sliding[k] = all_at_limit;
+      out.felt_velocity[k] = v_l;
+      out.motion_acceleration[k] = motion.a(tau);
+      out.element_force.insert(out.element_force.end(), f.begin(), f.end());
       if (normal) out.normal[k] = normal->at(t_rec);
     }
     if (j >= j_end) break;
@@ -261,6 +272,52 @@ Trace simulate(const System& sys, const Excitation& motion, const NormalProgram*
   for (std::size_t k = 0; k < n; ++k) {
     if (k > 0) e = phi * e + innovation * m.noise_sigma * white(gen);
     out.force[k] = out.clean[k] + e;
+  }
+  return out;
+}
+
+std::vector<double> reachable_force(const System& sys, const Trace& t, const NormalProgram* normal,
+                                    const Measurement& m) {
+  const Effects& fx = sys.effects;
+  const double delay = fx.delay.value_or(0.0), asym = fx.asymmetry.value_or(0.0);
+  const std::size_t n = t.position.size(), n_el = sys.elements.size();
+  const double ts = 1.0 / m.sampling_rate;
+  // The recorded displacement at t_k - D, linearly interpolated (held before the first sample).
+  std::vector<double> x(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const double s = static_cast<double>(k) - delay / ts;
+    if (s <= 0) {
+      x[k] = t.position[0];
+    } else {
+      const auto i = static_cast<std::size_t>(std::floor(s));
+      const double w = s - static_cast<double>(i);
+      x[k] = i + 1 < n ? (1 - w) * t.position[i] + w * t.position[i + 1] : t.position[n - 1];
+    }
+  }
+  const auto first = std::min(n - 1, static_cast<std::size_t>(std::ceil(delay / ts - 1e-9)));
+  std::vector<double> f(t.element_force.begin() + static_cast<long>(first * n_el),
+                        t.element_force.begin() + static_cast<long>((first + 1) * n_el));
+  std::vector<double> out(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (k < first) {
+      out[k] = t.clean[k];
+      continue;
+    }
+    if (k > first) {
+      const double tau = static_cast<double>(k) * ts - delay;
+      const double l = sys.coulomb * slip_level(sys, tau, delay, x[k], t.felt_velocity[k], normal);
+      for (std::size_t i = 0; i < n_el; ++i) {
+        const double a_i = sys.elements[i].share * l;
+        f[i] = std::clamp(f[i] + sys.elements[i].stiffness * (x[k] - x[k - 1]), -a_i * (1 - asym),
+                          a_i * (1 + asym));
+      }
+    }
+    double force = 0;
+    for (double fi : f) force += fi;
+    if (fx.viscous) force += *fx.viscous * t.felt_velocity[k];
+    if (fx.mass) force += *fx.mass * t.motion_acceleration[k];
+    if (fx.offset) force += *fx.offset;
+    out[k] = force;
   }
   return out;
 }

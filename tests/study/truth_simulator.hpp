@@ -139,19 +139,34 @@ struct Measurement {
 /// One simulated record.  Times in the record run from 0 (the first sample); `time` adds
 /// Measurement::time_origin.
 struct Trace {
-  std::vector<double> time;          ///< [s] as written
-  std::vector<double> position;      ///< quantised x + x_offset [m]
-  std::vector<double> force;         ///< clean force + noise [N]
-  std::vector<double> clean;         ///< the force without noise [N]
-  std::vector<double> normal;        ///< N(t) [N] (empty without a normal program)
-  std::vector<double> velocity;      ///< exact v(t_k) [m/s]
-  std::vector<double> acceleration;  ///< exact a(t_k) [m/s^2]
-  std::vector<bool> sliding;         ///< every element at a limit at t_k (motion instant)
+  std::vector<double> time;                 ///< [s] as written
+  std::vector<double> position;             ///< quantised x + x_offset [m]
+  std::vector<double> force;                ///< clean force + noise [N]
+  std::vector<double> clean;                ///< the force without noise [N]
+  std::vector<double> normal;               ///< N(t) [N] (empty without a normal program)
+  std::vector<double> velocity;             ///< exact v(t_k) [m/s]
+  std::vector<double> acceleration;         ///< exact a(t_k) [m/s^2]
+  std::vector<bool> sliding;                ///< every element at a limit at t_k (motion instant)
+  std::vector<double> felt_velocity;        ///< v_l at the motion instant t_k - D [m/s]
+  std::vector<double> motion_acceleration;  ///< a(t_k - D) [m/s^2]
+  std::vector<double> element_force;        ///< F_i at sample k, at [k * elements + i] [N]
 };
 
 /// Simulates `system` under `motion` (and `normal` when given) as `measurement` says.
 Trace simulate(const System& system, const Excitation& motion, const NormalProgram* normal,
                const Measurement& measurement);
+
+/// The force a perfect sampled model would give: the true system (effects, parameters and the
+/// element forces at the first sample) stepped once per sample on the RECORDED displacement
+/// (quantised, with the sensor's noise; shifted by the delay with linear interpolation, as a delay
+/// model would), with the exact felt velocity and acceleration for the speed-dependent terms.
+/// With a delay D the first ceil(D/Ts) samples would need displacement from before the record:
+/// the replay starts from the true state at the first sample after them and returns the clean
+/// force before it (a model estimates its initial state there; nothing is judged).
+/// Its error against the recorded force is the floor a model driven by the measured
+/// displacement can reach: force noise plus what the encoder's steps do to the elements.
+std::vector<double> reachable_force(const System& system, const Trace& trace,
+                                    const NormalProgram* normal, const Measurement& measurement);
 
 /// Root mean square of a - c b with c the least-squares scale (the part of a that a change of
 /// level alone cannot explain).  `scale_free` false: RMS of a - b.
