@@ -210,102 +210,29 @@ ResidualEvidence evidence_of(const MaxwellSlipParameters<double>& base,
     ev.best_shift = (static_cast<double>(best) + frac) * ts;
   }
 
-  // Effect signatures.
-  const std::vector<double> ones(n, 1.0);
-  std::vector<double> dir_s(n), v_s(n), a_s(n), dfhat(n, 0.0), asym(n), drift(n), a_all(s.a);
-  for (std::size_t k = 0; k < n; ++k) {
-    dir_s[k] = s.dir[k];
-    v_s[k] = s.sliding[k] * s.v[k];
-    a_s[k] = s.sliding[k] * s.a[k];
-    asym[k] = s.f0 > 0 ? s.fhat[k] * s.fhat[k] / s.f0 : 0.0;
-    drift[k] = s.dir[k] * s.f0 * s.t[k];
-  }
-  for (std::size_t k = 1; k + 1 < n; ++k)
-    dfhat[k] = (s.fhat[k + 1] - s.fhat[k - 1]) / (r.time[k + 1] - r.time[k - 1]);
-  auto add = [&](Effect eff, const Explained& x, double coef, std::string detail) {
-    ev.effects.push_back({eff, x.share, coef, std::move(detail)});
-  };
-  {
-    auto x = explain(s.e, {}, {ones});
-    add(Effect::offset, x, x.coefficients[0], "");
-  }
-  {
-    auto x = explain(s.e, {dir_s}, {v_s});
-    add(Effect::viscous, x, x.coefficients[0], "");
-  }
-  {
-    auto x = explain(s.e, {ones}, {asym});
-    add(Effect::asymmetry, x, x.coefficients[0], "");
-  }
-  {
-    auto x = explain(s.e, {}, {a_all});
-    add(Effect::inertia, x, x.coefficients[0], "");
-  }
-  {
-    auto x = explain(s.e, {dir_s}, {drift});
-    add(Effect::drift, x, x.coefficients[0], "");
-  }
-  {
-    auto x = explain(s.e, {}, {dfhat});
-    add(Effect::delay, x, ev.best_shift, "shift " + fmt(ev.best_shift) + " s");
-  }
-  {
-    auto x = explain(s.e, {dir_s, v_s}, {a_s});
-    add(Effect::frictional_lag, x, x.coefficients[0], "");
-  }
-  if (!speeds.empty()) {  // Stribeck: grid over vs between the sliding speeds' quantiles
+  // Effect signatures (effect_table.hpp), each at the best point of its grid.
+  const EvidenceSignals signals{s.e,    s.fhat,    s.v,   s.a,      s.x, s.t,
+                                r.time, s.sliding, s.dir, r.normal, s.f0};
+  const double travel = 2.0 * largest_travel(r.displacement);
+  for (Effect eff : kEvidenceOrder) {
+    if (effect_info(eff).needs_normal_force && !r.has_normal()) continue;
+    const SignatureGrid grid = evidence_grid(eff, speeds, travel);
+    if (grid.skip) continue;
     Explained best;
-    double best_vs = 0;
-    // The quantiles alone fail on records with rests: operators that stop at their thresholds
-    // count as sliding at |v| ~ 0, the low quantiles fall to ~1e-7 m/s and the fit starts from
-    // a curve that no moving sample feels (flat cost).  A log grid below the 95 % quantile keeps
-    // starts inside the speeds the record actually slides at.
-    std::vector<double> grid;
-    for (double qv : {0.02, 0.1, 0.25, 0.5, 0.75}) grid.push_back(quantile(speeds, qv));
-    const double top = quantile(speeds, 0.95);
-    for (int g = 0; g < 8; ++g) grid.push_back(top * std::pow(0.01, g / 7.0));
-    for (double grid_vs : grid) {
-      const double vs = std::max(grid_vs, 1e-12);
-      std::vector<double> g(n);
-      for (std::size_t k = 0; k < n; ++k)
-        g[k] = s.dir[k] * std::exp(-(s.v[k] / vs) * (s.v[k] / vs));
-      auto x = explain(s.e, {dir_s}, {g});
-      if (x.share > best.share || best_vs == 0) best = x, best_vs = vs;
+    double best_grid = 0;
+    if (!grid.gridded) {
+      const SignatureRegressors x = evidence_signature(eff, signals, 0.0);
+      best = explain(s.e, x.nuisance, x.effect);
     }
-    add(Effect::stribeck, best, best.coefficients.size() ? best.coefficients[0] : 0.0,
-        fmt(best_vs, 6));
-  }
-  {  // Position: grid over wavelengths spanning the travel.
-    const double travel = 2.0 * largest_travel(r.displacement);
-    Explained best;
-    double best_lambda = 0;
-    if (travel > 0) {
-      for (int g = 0; g < 28; ++g) {
-        const double lambda = travel / 10.0 * std::pow(40.0, g / 27.0);
-        std::vector<double> c1(n), c2(n);
-        for (std::size_t k = 0; k < n; ++k) {
-          c1[k] = s.dir[k] * std::sin(2 * kPi * s.x[k] / lambda);
-          c2[k] = s.dir[k] * std::cos(2 * kPi * s.x[k] / lambda);
-        }
-        auto x = explain(s.e, {dir_s}, {c1, c2});
-        if (x.share > best.share || best_lambda == 0) best = x, best_lambda = lambda;
-      }
+    for (double g : grid.values) {
+      const SignatureRegressors x = evidence_signature(eff, signals, g);
+      Explained e = explain(s.e, x.nuisance, x.effect);
+      if (e.share > best.share || best_grid == 0) best = std::move(e), best_grid = g;
     }
-    const double amp = best.coefficients.size() == 2
-                           ? std::hypot(best.coefficients[0], best.coefficients[1])
-                           : 0.0;
-    const double phase = best.coefficients.size() == 2
-                             ? std::atan2(best.coefficients[1], best.coefficients[0])
-                             : 0.0;
-    EffectEvidence pe{Effect::position_dependence, best.share, amp,
-                      fmt(best_lambda, 6) + " " + fmt(phase, 6)};
-    ev.effects.push_back(pe);
-  }
-  if (r.has_normal()) {
-    std::vector<double> dn(n);
-    for (std::size_t k = 0; k < n; ++k) dn[k] = s.dir[k] * r.normal[k];
-    auto x = explain(s.e, {dir_s}, {dn});
-    add(Effect::normal_load, x, x.coefficients[0], "");
+    const std::span<const double> coefficients(best.coefficients.data(),
+                                               static_cast<std::size_t>(best.coefficients.size()));
+    const EffectStart start = evidence_start(eff, coefficients, best_grid, ev.best_shift);
+    ev.effects.push_back({eff, best.share, start.coefficient, start});
   }
   std::stable_sort(
       ev.effects.begin(), ev.effects.end(),
@@ -344,64 +271,27 @@ ExtensionParameters<double> extension_start(Effect e, const ExtensionParameters<
                                             double f0) {
   ExtensionParameters<double> x = current;
   const EffectEvidence* w = find_evidence(ev, e);
-  const double coef = w ? w->coefficient : 0.0;
-  const double duration = std::max(r.time.back() - r.time.front(), 1e-12);
-  x.enable(e);
-  switch (e) {
-    case Effect::viscous:
-      x.viscous->viscous = std::max(coef, 0.0);
-      break;
-    case Effect::offset:
-      x.offset->offset = coef;
-      break;
-    case Effect::inertia:
-      x.inertia->mass = std::max(coef, 0.0);
-      break;
-    case Effect::asymmetry:
-      x.asymmetry->asymmetry = std::clamp(coef, -0.8, 0.8);
-      break;
-    case Effect::drift:
-      x.drift->relative_rate = std::clamp(coef, -0.5 / duration, 2.0 / duration);
-      break;
-    case Effect::delay:
-      x.delay->delay = coef;
-      break;
-    case Effect::stribeck: {
-      x.stribeck->static_force = std::clamp(f0 + coef, 0.3 * f0, 5.0 * f0);
-      x.stribeck->stribeck_velocity = w ? std::max(std::atof(w->detail.c_str()), 1e-12) : 1e-3;
-      x.stribeck->stribeck_exponent = 2.0;
-      break;
-    }
-    case Effect::position_dependence: {
-      double lambda = 1.0, phase = 0.0;
-      if (w) std::sscanf(w->detail.c_str(), "%lf %lf", &lambda, &phase);
-      x.position_dependence->amplitude = std::clamp(coef, -0.5 * f0, 0.5 * f0);
-      x.position_dependence->wavelength = lambda;
-      x.position_dependence->phase = phase;
-      break;
-    }
-    case Effect::normal_load: {
-      double sum = 0;
-      for (double v : r.normal) sum += v;
-      const double mean = sum / static_cast<double>(r.normal.size());
-      x.normal_load->friction_coefficient = mean > 0 ? f0 / mean : 1.0;
-      break;
-    }
-    case Effect::frictional_lag: {
-      const double ts = duration / static_cast<double>(r.size() - 1);
-      if (!x.viscous && !x.stribeck) {
-        x.enable(Effect::viscous);
-        const EffectEvidence* vw = find_evidence(ev, Effect::viscous);
-        x.viscous->viscous = std::max(vw ? vw->coefficient : 0.0, 0.0);
-        if (x.viscous->viscous <= 0)
-          x.viscous->viscous = 0.05 * f0 / std::max(ev.sliding_speed_max, 1e-12);
-      }
-      const double sigma2 = x.viscous ? x.viscous->viscous : 0.0;
-      x.frictional_lag->lag_time =
-          std::clamp(sigma2 > 0 ? -coef / sigma2 : 5 * ts, 2 * ts, duration / 20);
-      break;
-    }
+  const EffectEvidence* viscous = find_evidence(ev, Effect::viscous);
+  EvidenceStartContext c;
+  c.reference_force = f0;
+  c.duration = std::max(r.time.back() - r.time.front(), 1e-12);
+  c.sample_period = c.duration / static_cast<double>(r.size() - 1);
+  if (effect_info(e).needs_normal_force) {
+    double sum = 0;
+    for (double v : r.normal) sum += v;
+    c.mean_normal_force = sum / static_cast<double>(r.normal.size());
   }
+  c.sliding_speed_max = ev.sliding_speed_max;
+  c.has_velocity_piece = x.viscous || x.stribeck;
+  c.current_viscous = x.viscous ? x.viscous->viscous : 0.0;
+  c.viscous_coefficient = viscous ? viscous->coefficient : 0.0;
+  const PieceStart start = start_from_evidence(e, w ? &w->start : nullptr, c);
+  x.enable(e);
+  if (start.viscous_companion) {
+    x.enable(Effect::viscous);
+    x.viscous->viscous = *start.viscous_companion;
+  }
+  x.assign(e, start.values);
   x.reference_force = f0;
   return x;
 }
@@ -417,131 +307,32 @@ std::vector<Effect> applicable(const DiagnoseOptions& o, const Record& r) {
   return out;
 }
 
-std::string partner_of(Effect e) {
-  switch (e) {
-    case Effect::offset:
-      return "asymmetry";
-    case Effect::asymmetry:
-      return "offset";
-    case Effect::inertia:
-      return "position-dependence";
-    case Effect::position_dependence:
-      return "inertia";
-    case Effect::delay:
-      return "frictional-lag";
-    case Effect::frictional_lag:
-      return "delay";
-    default:
-      return "";
-  }
-}
-
-std::string separating_excitation(Effect e) {
-  switch (e) {
-    case Effect::offset:
-    case Effect::asymmetry:
-      return "rest periods and small presliding loops (an offset shows at rest and in presliding, "
-             "an asymmetry only in the sliding levels)";
-    case Effect::inertia:
-    case Effect::position_dependence:
-      return "motion at several frequencies or amplitudes over the same travel (inertia follows "
-             "the "
-             "acceleration, a position term the position)";
-    case Effect::delay:
-    case Effect::frictional_lag:
-      return "velocity steps while sliding and presliding reversals (a delay shifts presliding "
-             "too, a frictional lag only acts while sliding)";
-    case Effect::viscous:
-    case Effect::stribeck:
-      return "sliding at several constant speeds";
-    default:
-      return "";
-  }
-}
-
-// What an estimation record needs so that an effect acts in it (the warning on strong but
-// rejected evidence).
-std::string what_would_establish(Effect e) {
-  switch (e) {
-    case Effect::normal_load:
-      return "changes of the normal load while it moves";
-    case Effect::viscous:
-    case Effect::stribeck:
-    case Effect::frictional_lag:
-      return "sliding at several speeds, with speed steps";
-    case Effect::inertia:
-      return "larger accelerations";
-    case Effect::position_dependence:
-      return "several strokes over different positions";
-    case Effect::drift:
-      return "a longer record";
-    case Effect::delay:
-      return "faster reversals";
-    case Effect::offset:
-    case Effect::asymmetry:
-      return "rests and sliding in both directions";
-  }
-  return "more of its variable";
-}
-
-// Parameters in the model's own F0 (reference_force 0), as the saved model and findings use.
-ExtensionParameters<double> to_own_reference(const ExtensionParameters<double>& ext,
-                                             const MaxwellSlipParameters<double>& base) {
-  ExtensionParameters<double> out = ext;
-  const double f0ref = ext.reference_force;
-  out.reference_force = 0.0;
-  if (f0ref <= 0) return out;
-  const double ratio = base.sliding_force() / f0ref;
-  if (out.stribeck) out.stribeck->static_force *= ratio;
-  if (out.position_dependence) out.position_dependence->amplitude *= ratio;
-  if (out.normal_load) out.normal_load->friction_coefficient *= ratio;
-  return out;
-}
-
+// A finding's parameters: the piece's, and those of a companion reported with it (methods.md 7
+// names, the model's own F0).
 Json piece_parameters(const ExtensionParameters<double>& ext, Effect e) {
+  const std::optional<Effect> with = effect_info(e).reported_with;
   Json j = Json::object();
   ext.for_each_parameter([&](Effect pe, std::string_view name, const double& v) {
     if (pe == e) j[std::string(name)] = v;
   });
-  if (e == Effect::frictional_lag && ext.viscous) j["viscous"] = ext.viscous->viscous;
+  ext.for_each_parameter([&](Effect pe, std::string_view name, const double& v) {
+    if (with && pe == *with) j[std::string(name)] = v;
+  });
   return j;
 }
 
-std::string extension_text(Effect e) {
-  switch (e) {
-    case Effect::viscous:
-      return "added viscous term sigma2 v";
-    case Effect::stribeck:
-      return "thresholds scaled by the Stribeck curve 1 + (Fs/F0 - 1) exp(-(|v|/vs)^q)";
-    case Effect::frictional_lag:
-      return "the velocity-dependent friction follows the velocity through a first-order lag";
-    case Effect::asymmetry:
-      return "thresholds scaled by 1 + a d (direction-dependent sliding levels)";
-    case Effect::offset:
-      return "added constant offset";
-    case Effect::inertia:
-      return "added inertial term m a";
-    case Effect::position_dependence:
-      return "thresholds scaled by 1 + (A/F0) sin(2 pi x / lambda + phi)";
-    case Effect::drift:
-      return "thresholds scaled by 1 + r t";
-    case Effect::delay:
-      return "the model is driven by the displacement delayed by D";
-    case Effect::normal_load:
-      return "thresholds scaled by mu N(t) / F0 (friction proportional to the normal force)";
+// The grid point a start came from, as the evidence reports it.
+std::string start_detail_text(const EffectEvidence& w) {
+  switch (effect_info(w.effect).detail) {
+    case StartDetail::velocity:
+      return fmt(w.start.velocity, 6);
+    case StartDetail::wavelength_phase:
+      return fmt(w.start.wavelength, 6) + " " + fmt(w.start.phase, 6);
+    case StartDetail::shift:
+      return "shift " + fmt(w.start.shift) + " s";
+    case StartDetail::none:
+      return "";
   }
-  return "";
-}
-
-std::string units_of(std::string_view name) {
-  if (name == "viscous") return "N s/m";
-  if (name == "static" || name == "offset" || name == "amplitude") return "N";
-  if (name == "stribeck_velocity") return "m/s";
-  if (name == "lag_time" || name == "delay") return "s";
-  if (name == "mass") return "kg";
-  if (name == "wavelength") return "m";
-  if (name == "phase") return "rad";
-  if (name == "relative_rate") return "1/s";
   return "";
 }
 
@@ -580,7 +371,7 @@ Json ResidualEvidence::to_json() const {
     eff.push_back({{"effect", std::string(effect_name(e.effect))},
                    {"explained", e.explained},
                    {"coefficient", e.coefficient},
-                   {"detail", e.detail}});
+                   {"detail", start_detail_text(e)}});
   j["signatures"] = eff;
   return j;
 }
@@ -958,9 +749,9 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
     const Effect e = after.order.back();
     Finding f;
     f.effect = std::string(effect_name(e));
-    const ExtensionParameters<double> own = to_own_reference(after.ext, after.base);
+    const ExtensionParameters<double> own = to_own_reference(after.ext, after.base.sliding_force());
     f.parameters = piece_parameters(own, e);
-    f.extension = extension_text(e);
+    f.extension = std::string(effect_info(e).extension);
     f.validation_before = before.validation;
     f.validation_after = after.validation;
     f.estimation_before = percent(est.force, before.rss);
@@ -978,10 +769,11 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
                                     bic(before.rss, n, 0)},
                   {"noise_floor_rss", floor_rss}};
     // Ambiguity with the partner of methods.md 7, from the round that accepted this effect.
-    const std::string partner = partner_of(e);
-    if (!removed && i - 1 < rounds.size()) {
+    const std::optional<Effect> partner_effect = effect_info(e).partner;
+    const std::string partner = partner_effect ? std::string(effect_name(*partner_effect)) : "";
+    if (!removed && i - 1 < rounds.size() && partner_effect) {
       for (const auto& t : rounds[i - 1]) {
-        if (std::string(effect_name(t.fit.effect)) != partner || !t.result.ok) continue;
+        if (t.fit.effect != *partner_effect || !t.result.ok) continue;
         // 2 ln(likelihood ratio) of the two fits for Gaussian errors, without the parameter
         // penalty of BIC: the question is whether the record can tell the causes apart, not
         // which one is simpler (a position term has two parameters more than a mass and fits a
@@ -993,13 +785,13 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
                                  {"log_likelihood_ratio", evidence_gap}};
         if (t.fit.earns_place && std::abs(evidence_gap) < o.ambiguity_evidence) {
           f.ambiguous_with.push_back(partner);
-          f.separating_excitation = separating_excitation(e);
+          f.separating_excitation = std::string(effect_info(e).separating_excitation);
         }
       }
     }
-    if ((e == Effect::viscous || e == Effect::stribeck) && speed_span > 0 && speed_span < 1.5) {
-      f.ambiguous_with.push_back("a higher Coulomb level (thresholds)");
-      f.separating_excitation = separating_excitation(e);
+    if (effect_info(e).ambiguous_with_coulomb_level && speed_span > 0 && speed_span < 1.5) {
+      f.ambiguous_with.push_back(std::string(kCoulombLevelAlternative));
+      f.separating_excitation = std::string(effect_info(e).separating_excitation);
     }
     // One sentence.
     std::ostringstream s;
@@ -1014,7 +806,7 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
     s << "; cause: " << f.effect << "; extension: " << f.extension << " with";
     for (auto it = f.parameters.begin(); it != f.parameters.end(); ++it)
       s << " " << it.key() << " = " << fmt(it.value().get<double>(), 4) << " "
-        << units_of(it.key());
+        << parameter_unit(it.key());
     s << "; validation RSS/SSS " << fmt(f.validation_before) << " % -> " << fmt(f.validation_after)
       << " % (gain x"
       << fmt(f.validation_after > 0 ? f.validation_before / f.validation_after : 0.0) << ")";
@@ -1046,13 +838,13 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
       << fmt(-c.delta_bic) << ") but its drop there is below what rule (b) asks, so it was not "
       << "accepted; alone on the baseline it gives a validation RSS/SSS of "
       << fmt(c.validation_percent, 4) << " % against " << fmt(dx.baseline_validation_percent, 4)
-      << " %. An estimation record in which it acts more (" << what_would_establish(c.effect)
+      << " %. An estimation record in which it acts more (" << effect_info(c.effect).would_establish
       << ") would decide; `identify --extension " << effect_name(c.effect)
       << "` fits it on request.";
     dx.warnings.push_back(w.str());
   }
-  dx.final_model = AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(last.base),
-                                                          to_own_reference(last.ext, last.base)));
+  dx.final_model = AnyModel(Extended<MaxwellSlip<double>>(
+      MaxwellSlip<double>(last.base), to_own_reference(last.ext, last.base.sliding_force())));
   dx.final_validation_percent = last.validation;
   dx.final_estimation_percent = percent(est.force, last.rss);
   dx.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();

@@ -523,189 +523,39 @@ RecordSignals record_signals(const Record& r) {
   return s;
 }
 
+// Starts of the pieces on a held base: the effect table's regressions on the base's residual.
 ExtensionParameters<double> regression_start(const std::vector<Effect>& effects, const Record& r,
                                              const std::vector<double>& fhat, double f0) {
   const std::size_t n = r.size();
   const RecordSignals sig = record_signals(r);
-  const std::vector<double>& v = sig.v;
-  const std::vector<double>& a = sig.a;
   std::vector<double> e(n), t(n);
   for (std::size_t k = 0; k < n; ++k) {
     e[k] = r.force[k] - fhat[k];
     t[k] = r.time[k] - r.time.front();
   }
-  const auto coef = [&](const auto& col) {
-    double num = 0, den = 0;
-    for (std::size_t k = 0; k < n; ++k) {
-      const double c = col(k);
-      num += c * e[k];
-      den += c * c;
-    }
-    return den > 0 ? num / den : 0.0;
-  };
-  const auto explained2 = [&](const auto& c1, const auto& c2, double* b1, double* b2) {
-    double s11 = 0, s12 = 0, s22 = 0, y1 = 0, y2 = 0;
-    for (std::size_t k = 0; k < n; ++k) {
-      const double p = c1(k), q = c2(k);
-      s11 += p * p, s12 += p * q, s22 += q * q, y1 += p * e[k], y2 += q * e[k];
-    }
-    const double det = s11 * s22 - s12 * s12;
-    if (!(std::abs(det) > 0)) return *b1 = *b2 = 0.0;
-    *b1 = (s22 * y1 - s12 * y2) / det;
-    *b2 = (s11 * y2 - s12 * y1) / det;
-    return *b1 * y1 + *b2 * y2;
-  };
-  const double duration = record_duration(r);
-  const double ts = duration / static_cast<double>(n - 1);
+  const RegressionSignals signals{e, fhat,   sig.v,    sig.a, r.displacement,
+                                  t, r.time, r.normal, f0,    record_duration(r)};
   ExtensionParameters<double> x;
   for (Effect eff : effects) {
     x.enable(eff);
-    switch (eff) {
-      case Effect::viscous:
-        x.viscous->viscous = std::max(coef([&](std::size_t k) { return v[k]; }), 0.0);
-        break;
-      case Effect::offset:
-        x.offset->offset = coef([](std::size_t) { return 1.0; });
-        break;
-      case Effect::inertia:
-        x.inertia->mass = std::max(coef([&](std::size_t k) { return a[k]; }), 0.0);
-        break;
-      case Effect::asymmetry:
-        x.asymmetry->asymmetry = std::clamp(coef([&](std::size_t k) {
-                                              const double d =
-                                                  k ? std::clamp(fhat[k - 1] / f0, -1.0, 1.0) : 0.0;
-                                              return d * f0;
-                                            }),
-                                            -0.8, 0.8);
-        break;
-      case Effect::drift:
-        x.drift->relative_rate = std::clamp(coef([&](std::size_t k) { return fhat[k] * t[k]; }),
-                                            -0.5 / duration, 2.0 / duration);
-        break;
-      case Effect::delay:
-        x.delay->delay =
-            std::clamp(coef([&](std::size_t k) {
-                         if (k == 0 || k + 1 >= n) return 0.0;
-                         return -(fhat[k + 1] - fhat[k - 1]) / (r.time[k + 1] - r.time[k - 1]);
-                       }),
-                       -duration / 20, duration / 20);
-        break;
-      case Effect::stribeck: {
-        std::vector<double> speeds;
-        for (double s : v)
-          if (s != 0) speeds.push_back(std::abs(s));
-        std::sort(speeds.begin(), speeds.end());
-        double best = -1, best_vs = 1e-3, best_c = 0;
-        for (double qf : {0.1, 0.3, 0.5, 0.7, 0.9}) {
-          if (speeds.empty()) break;
-          const double vs =
-              std::max(speeds[static_cast<std::size_t>(qf * (speeds.size() - 1))], 1e-12);
-          const auto col = [&](std::size_t k) {
-            const double w = std::exp(-(v[k] / vs) * (v[k] / vs));
-            return v[k] > 0 ? w : (v[k] < 0 ? -w : 0.0);
-          };
-          const double c = coef(col);
-          double den = 0;
-          for (std::size_t k = 0; k < n; ++k) den += col(k) * col(k);
-          if (c * c * den > best) best = c * c * den, best_vs = vs, best_c = c;
-        }
-        x.stribeck->static_force = std::clamp(f0 + best_c, 0.3 * f0, 5.0 * f0);
-        x.stribeck->stribeck_velocity = best_vs;
-        x.stribeck->stribeck_exponent = 2.0;
-        break;
-      }
-      case Effect::position_dependence: {
-        const auto [lo, hi] = std::minmax_element(r.displacement.begin(), r.displacement.end());
-        const double range = std::max(*hi - *lo, 1e-12);
-        double best = -1, lambda = range, amp = 0, phase = 0;
-        for (int g = 0; g < 25; ++g) {
-          const double l = 2.0 * range * std::pow(1.0 / 128.0, g / 24.0);
-          double b1 = 0, b2 = 0;
-          const double ex = explained2(
-              [&](std::size_t k) { return fhat[k] * std::sin(2 * M_PI * r.displacement[k] / l); },
-              [&](std::size_t k) { return fhat[k] * std::cos(2 * M_PI * r.displacement[k] / l); },
-              &b1, &b2);
-          if (ex > best)
-            best = ex, lambda = l, amp = f0 * std::hypot(b1, b2), phase = std::atan2(b2, b1);
-        }
-        x.position_dependence->amplitude = std::clamp(amp, -0.5 * f0, 0.5 * f0);
-        x.position_dependence->wavelength = lambda;
-        x.position_dependence->phase = phase;
-        break;
-      }
-      case Effect::normal_load: {
-        double s = 0;
-        for (double q : r.normal) s += q;
-        const double mean = s / static_cast<double>(r.normal.size());
-        x.normal_load->friction_coefficient = mean > 0 ? f0 / mean : 1.0;
-        break;
-      }
-      case Effect::frictional_lag:
-        x.frictional_lag->lag_time = 5 * ts;
-        break;
-    }
+    x.assign(eff, start_from_regression(eff, signals).values);
   }
   return x;
 }
 
 // ---------------------------------------------------------------------------------------------
 
-// Parameters in the model's own F0 (reference_force 0), as a saved model uses them.
-double own_reference_ratio(const ExtensionParameters<double>& ext, double own_f0) {
-  return ext.reference_force > 0 ? own_f0 / ext.reference_force : 1.0;
+bool scales_with_f0(Effect e, std::string_view name) {
+  return find_parameter(e, name)->scales_with_reference_force;
 }
 
-bool scales_with_f0(std::string_view name) {
-  return name == "static" || name == "amplitude" || name == "friction_coefficient";
-}
-
-ExtensionParameters<double> to_own_reference(const ExtensionParameters<double>& ext,
-                                             double own_f0) {
-  ExtensionParameters<double> out = ext;
-  const double ratio = own_reference_ratio(ext, own_f0);
-  out.reference_force = 0.0;
-  out.for_each_parameter([&](Effect, std::string_view name, double& v) {
-    if (scales_with_f0(name)) v *= ratio;
-  });
-  return out;
-}
-
-// The main parameter of a piece and its null value (no effect); false for normal-load.
+// The main parameter of a piece and its null value (no effect); false when it has none
+// (normal-load: mu only rescales the level).
 bool main_parameter(Effect e, std::string_view* name, double f0, double* null_value) {
-  *null_value = 0.0;
-  switch (e) {
-    case Effect::viscous:
-      *name = "viscous";
-      return true;
-    case Effect::stribeck:
-      *name = "static";
-      *null_value = f0;
-      return true;
-    case Effect::frictional_lag:
-      *name = "lag_time";
-      return true;
-    case Effect::asymmetry:
-      *name = "asymmetry";
-      return true;
-    case Effect::offset:
-      *name = "offset";
-      return true;
-    case Effect::inertia:
-      *name = "mass";
-      return true;
-    case Effect::position_dependence:
-      *name = "amplitude";
-      return true;
-    case Effect::drift:
-      *name = "relative_rate";
-      return true;
-    case Effect::delay:
-      *name = "delay";
-      return true;
-    case Effect::normal_load:
-      return false;
-  }
-  return false;
+  const EffectInfo& info = effect_info(e);
+  *name = info.main_parameter;
+  *null_value = info.null_value == NullValue::reference_force ? f0 : 0.0;
+  return info.null_value != NullValue::none;
 }
 
 // Order of a joint start: the velocity pieces before the lag that acts through them.
@@ -727,8 +577,8 @@ std::vector<ExtensionEstimate> make_estimates(const ExtensionParameters<double>&
     ExtensionEstimate est;
     est.effect = e;
     est.name = std::string(name);
-    est.unit = extension_parameter_unit(name);
-    const double s = scales_with_f0(name) ? ratio : 1.0;
+    est.unit = std::string(parameter_unit(name));
+    const double s = scales_with_f0(e, name) ? ratio : 1.0;
     est.value = v * s;
     est.at_bound = at_bound(v, box.lower[c]) || at_bound(v, box.upper[c]);
     est.standard_error = cov.ok && !est.at_bound ? cov.standard_error[c] * s : 0.0;
@@ -1053,24 +903,11 @@ void identify_other(ExtensionIdentification& res, Family fam, const Record& r,
 // -----------------------------------------------------------------------------------------------
 
 std::string extension_parameter_unit(std::string_view name) {
-  if (name == "viscous") return "N s/m";
-  if (name == "static" || name == "offset" || name == "amplitude") return "N";
-  if (name == "stribeck_velocity") return "m/s";
-  if (name == "lag_time" || name == "delay") return "s";
-  if (name == "mass") return "kg";
-  if (name == "wavelength") return "m";
-  if (name == "phase") return "rad";
-  if (name == "relative_rate") return "1/s";
-  return "";
+  return std::string(parameter_unit(name));
 }
 
 std::string extension_names() {
-  std::string s;
-  for (Effect e : kAllEffects) {
-    if (!s.empty()) s += ", ";
-    s += effect_name(e);
-  }
-  return s;
+  return effect_names();
 }
 
 std::vector<Effect> parse_extension_list(const std::vector<std::string>& names) {

@@ -120,6 +120,7 @@
 #include <string>
 #include <vector>
 
+#include "friction/effect_table.hpp"
 #include "friction/extensions.hpp"
 #include "friction/maxwell_slip.hpp"
 #include "friction/methods.hpp"
@@ -151,7 +152,7 @@ struct EffectEvidence {
   Effect effect{};
   double explained = 0;    ///< share of the residual sum of squares explained, 0..1
   double coefficient = 0;  ///< regression coefficient (the fit's start), SI
-  std::string detail;      ///< e.g. the wavelength or lag used
+  EffectStart start;       ///< the typed start (grid point, wavelength, shift) of the fit
 };
 
 /// What the current model's simulation gets wrong on one record.

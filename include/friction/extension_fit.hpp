@@ -80,6 +80,14 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
                                   const ExtensionParameters<double>& ext0, bool fix_theta,
                                   int max_iterations);
 
+/// The pieces with the parameters that refer to F0 (effect table: `static`, `amplitude`,
+/// `friction_coefficient`) converted from the fit's fixed reference force (ext.reference_force) to
+/// `own_f0`, the sliding force of the fitted base, with reference_force 0: what a saved model uses.
+ExtensionParameters<double> to_own_reference(const ExtensionParameters<double>& ext, double own_f0);
+
+/// The factor to_own_reference multiplies those parameters by (1 without a reference force).
+double own_reference_ratio(const ExtensionParameters<double>& ext, double own_f0);
+
 /// delta_i(0) = rho_i Delta_i.
 std::vector<double> deflections_from_relative(const MaxwellSlipParameters<double>& base,
                                               const std::vector<double>& rho);
