@@ -11,6 +11,7 @@
 #include <limits>
 #include <sstream>
 
+#include "friction/covariance_report.hpp"
 #include "friction/initial_state.hpp"
 #include "slip_regression.hpp"
 
@@ -750,35 +751,38 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
     const bool ok = detail::marginal_covariance(jac, 2 * mi, c, 1e-7);
     const double dof = std::max(1.0, n - 3.0 * static_cast<double>(m));
     const double sigma2 = rep.estimation.rss / (d.scale * d.scale) / dof;
-    if (ok && c.allFinite()) {
-      c *= sigma2;
-      for (Eigen::Index a = 0; a < 2 * mi; ++a) {
-        auto& est = rep.parameters[static_cast<std::size_t>(a)];
-        const double se_log = std::sqrt(std::max(0.0, c(a, a)));
-        est.standard_error = est.value * se_log;
-        est.lower95 = est.value * std::exp(-1.96 * se_log);
-        est.upper95 = est.value * std::exp(1.96 * se_log);
-        if (est.upper95 / est.lower95 > 10.0) {
-          std::ostringstream w;
-          w << est.name << ": 95 % interval [" << est.lower95 << ", " << est.upper95 << "] "
+    const bool usable = ok && c.allFinite();
+    if (usable) c *= sigma2;
+    // Stiffnesses and thresholds are fitted through their logarithms: log-normal intervals.
+    std::vector<CovarianceParameter> cp;
+    for (std::size_t a = 0; a < 2 * m; ++a)
+      cp.push_back({rep.parameters[a].name, rep.parameters[a].unit, rep.parameters[a].value,
+                    Parametrisation::log, 1.0, static_cast<std::ptrdiff_t>(a)});
+    CovarianceOptions co;
+    co.correlation_limit = 0.99;
+    const CovarianceReport cr = covariance_report(usable ? &c : nullptr, cp, co);
+    cr.apply(rep.parameters);
+    rep.correlation = cr.correlation;
+    for (const IdentifiabilityWarning& w : cr.warnings) {
+      const ParameterEstimate& est = rep.parameters[w.parameter];
+      std::ostringstream t;
+      switch (w.issue) {
+        case IdentifiabilityIssue::wide_interval:
+          t << est.name << ": 95 % interval [" << est.lower95 << ", " << est.upper95 << "] "
             << est.unit << " spans more than an order of magnitude (poorly identified)";
-          rep.warnings.push_back(w.str());
-        }
-        for (Eigen::Index b = 0; b < 2 * mi; ++b) {
-          const double den = std::sqrt(c(a, a) * c(b, b));
-          rep.correlation(a, b) = den > 0.0 ? c(a, b) / den : (a == b ? 1.0 : 0.0);
-        }
+          break;
+        case IdentifiabilityIssue::correlated:
+          t << est.name << " and " << rep.parameters[w.other].name
+            << " are correlated above 0.99 (near-singular)";
+          break;
+        case IdentifiabilityIssue::covariance_unavailable:
+          t << "the parameter covariance is rank-deficient (some parameters are not identifiable "
+               "from this record); standard errors are not available";
+          break;
+        default:
+          continue;
       }
-      for (Eigen::Index a = 0; a < 2 * mi; ++a)
-        for (Eigen::Index b = a + 1; b < 2 * mi; ++b)
-          if (std::abs(rep.correlation(a, b)) > 0.99)
-            rep.warnings.push_back(rep.parameters[static_cast<std::size_t>(a)].name + " and " +
-                                   rep.parameters[static_cast<std::size_t>(b)].name +
-                                   " are correlated above 0.99 (near-singular)");
-    } else {
-      rep.warnings.push_back(
-          "the parameter covariance is rank-deficient (some parameters are not identifiable from "
-          "this record); standard errors are not available");
+      rep.warnings.push_back(t.str());
     }
   }
   for (std::size_t i = 0; i < m; ++i) {
