@@ -108,6 +108,7 @@
 #include <utility>
 #include <vector>
 
+#include "friction/extension_fit.hpp"
 #include "friction/extensions.hpp"
 #include "friction/identification.hpp"
 #include "friction/metrics.hpp"
@@ -128,16 +129,6 @@ struct ExtensionFitOptions {
   std::size_t operators = 0;      ///< the restart's M (0: selected by BIC up to max_operators)
   std::size_t max_operators = 0;  ///< 0: NLR's default
   bool global_stage = false;      ///< the restart's NLR global stage
-};
-
-/// One fitted parameter of a piece.
-struct ExtensionEstimate {
-  Effect effect{};
-  std::string name;  ///< methods.md 7 name ("viscous", "static", "mass", ...)
-  std::string unit;  ///< SI
-  double value = 0;
-  double standard_error = 0;  ///< 0 when not available (at a bound, rank-deficient covariance)
-  bool at_bound = false;
 };
 
 /// What identify_extensions returns.
