@@ -262,12 +262,7 @@ ExtendedFreeRun free_run_extended(const AnyModel& model, const Record& r) {
   return out;
 }
 
-Json ExtensionIdentification::to_json() const {
-  Json j;
-  j["base"] = base_held ? "held" : "refitted jointly";
-  Json ord = Json::array();
-  for (Effect e : order) ord.push_back(std::string(effect_name(e)));
-  j["order"] = ord;
+Json pieces_to_json(const std::vector<ExtensionEstimate>& estimates) {
   Json pieces = Json::object();
   for (const auto& est : estimates) {
     Json v = {{"value", est.value},
@@ -276,7 +271,16 @@ Json ExtensionIdentification::to_json() const {
               {"at_bound", est.at_bound}};
     pieces[std::string(effect_name(est.effect))][est.name] = v;
   }
-  j["pieces"] = pieces;
+  return pieces;
+}
+
+Json ExtensionIdentification::to_json() const {
+  Json j;
+  j["base"] = base_held ? "held" : "refitted jointly";
+  Json ord = Json::array();
+  for (Effect e : order) ord.push_back(std::string(effect_name(e)));
+  j["order"] = ord;
+  j["pieces"] = pieces_to_json(estimates);
   Json none = Json::array();
   for (Effect e : without_evidence) none.push_back(std::string(effect_name(e)));
   j["no_evidence"] = none;

@@ -156,6 +156,10 @@ struct ExtensionIdentification {
   Json to_json() const;
 };
 
+/// The pieces' estimates as the documents show them: {effect: {param: {value, unit,
+/// standard_error, at_bound}}} (standard_error 0 when not available).
+Json pieces_to_json(const std::vector<ExtensionEstimate>& estimates);
+
 /// The section 7 names, comma-separated, for messages.
 std::string extension_names();
 
