@@ -17,6 +17,7 @@
 #include "friction/covariance_report.hpp"
 #include "friction/error.hpp"
 #include "friction/motion.hpp"
+#include "nlopt_seed.hpp"
 
 namespace friction {
 namespace {
@@ -281,7 +282,6 @@ Point nlopt_run(nlopt::algorithm algo, const Objective& obj, const Box& box, Poi
     for (std::size_t i = 0; i <= kP; ++i) step[i] = 0.05 * (box.upper[i] - box.lower[i]);
     opt.set_initial_step(step);
   }
-  nlopt::srand(seed);
   struct Ctx {
     const Objective* obj;
     Point best;
@@ -298,6 +298,7 @@ Point nlopt_run(nlopt::algorithm algo, const Objective& obj, const Box& box, Poi
   std::vector<double> v = box.clamp(start.v);
   double f = 0;
   try {
+    const auto seeded = detail::seed_nlopt(seed);
     opt.optimize(v, f);
   } catch (const std::exception&) {
     // NLopt stops on round-off or a budget; the best point seen is kept in ctx.

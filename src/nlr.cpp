@@ -13,6 +13,7 @@
 
 #include "friction/covariance_report.hpp"
 #include "friction/initial_state.hpp"
+#include "nlopt_seed.hpp"
 #include "slip_regression.hpp"
 
 namespace friction {
@@ -529,7 +530,6 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
     const int per_operator = o.operators > 0 ? 500 : 150;
     opt.set_maxeval(o.global_evaluations > 0 ? o.global_evaluations
                                              : per_operator * static_cast<int>(m));
-    nlopt::srand(o.seed + 7919u * static_cast<unsigned>(round));
     struct Ctx {
       const Data* d;
       std::vector<double> rho;
@@ -548,6 +548,7 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
     std::vector<double> s0 = best.s;
     double f0 = 0;
     try {
+      const auto seeded = detail::seed_nlopt(o.seed + 7919u * static_cast<unsigned>(round));
       opt.optimize(s0, f0);
     } catch (const std::exception&) {
       // NLopt stops on round-off or budget; the best point seen is kept in ctx.
