@@ -171,7 +171,9 @@ void check_extension_request(const std::string& type, const std::vector<Effect>&
           "identify: on dnlrx frictional-lag needs the stribeck piece it acts through (the "
           "input filter is its own viscous lag); ask for stribeck,frictional-lag");
   }
-  if (has(Effect::normal_load) && !r.has_normal())
+  const bool needs_normal = std::any_of(effects.begin(), effects.end(),
+                                        [](Effect e) { return effect_info(e).needs_normal_force; });
+  if (needs_normal && !r.has_normal())
     throw DataError(r.source, 0, 0,
                     "the normal-load extension needs a normal force column (normal, "
                     "normal_force or normal_force_n; --columns normal=NAME), and the record "
