@@ -11,6 +11,7 @@
 #include <limits>
 #include <sstream>
 
+#include "friction/covariance_report.hpp"
 #include "friction/initial_state.hpp"
 #include "friction/simulate.hpp"
 #include "slip_regression.hpp"
@@ -382,39 +383,31 @@ void finish(std::span<const double> time, std::span<const double> x, std::span<c
     Eigen::MatrixXd cov;
     const double dof = std::max(1.0, static_cast<double>(n) - static_cast<double>(jn.cols()));
     const double sigma2 = rep.estimation.rss / dof;
-    if (detail::marginal_covariance(jn, pj, cov, 1e-10)) {
-      cov *= sigma2;
-      for (std::size_t a = 0; a < cols.size(); ++a) {
-        auto& est = rep.parameters[static_cast<std::size_t>(cols[a])];
-        const double se = std::sqrt(
-            std::max(0.0, cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(a))));
-        if (cols[a] < pc) {
-          est.standard_error = se;
-          est.lower95 = est.value - 1.96 * se;
-          est.upper95 = est.value + 1.96 * se;
-          if (std::abs(est.value) < 1.96 * se)
-            rep.warnings.push_back(est.name +
-                                   ": not significantly different from 0 (|value| < 1.96 se)");
-        } else {
-          est.standard_error = est.value * se;  // se is of log Delta
-          est.lower95 = est.value * std::exp(-1.96 * se);
-          est.upper95 = est.value * std::exp(1.96 * se);
-          if (est.upper95 / est.lower95 > 10.0)
-            rep.warnings.push_back(est.name +
-                                   ": 95 % interval spans more than an order of magnitude");
-        }
-        for (std::size_t b = 0; b < cols.size(); ++b) {
-          const double den =
-              std::sqrt(cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(a)) *
-                        cov(static_cast<Eigen::Index>(b), static_cast<Eigen::Index>(b)));
-          rep.correlation(cols[a], cols[b]) =
-              den > 0.0 ? cov(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) / den
-                        : (a == b ? 1.0 : 0.0);
-        }
-      }
-    } else {
-      rep.warnings.push_back(
-          "the parameter covariance is rank-deficient; standard errors are not available");
+    const bool usable = detail::marginal_covariance(jn, pj, cov, 1e-10);
+    if (usable) cov *= sigma2;
+    // Filters are fitted linearly (symmetric intervals), thresholds through log Delta.
+    std::vector<CovarianceParameter> cp;
+    for (const ParameterEstimate& e : rep.parameters)
+      cp.push_back({e.name, e.unit, e.value, Parametrisation::linear, 1.0, -1});
+    for (std::size_t a = 0; a < cols.size(); ++a) {
+      auto& q = cp[static_cast<std::size_t>(cols[a])];
+      q.column = static_cast<std::ptrdiff_t>(a);
+      if (cols[a] >= pc) q.fitted = Parametrisation::log;
+    }
+    CovarianceOptions co;
+    co.zero_test = true;
+    const CovarianceReport cr = covariance_report(usable ? &cov : nullptr, cp, co);
+    cr.apply(rep.parameters);
+    rep.correlation = cr.correlation;
+    for (const IdentifiabilityWarning& w : cr.warnings) {
+      const std::string& name = rep.parameters[w.parameter].name;
+      if (w.issue == IdentifiabilityIssue::not_significant)
+        rep.warnings.push_back(name + ": not significantly different from 0 (|value| < 1.96 se)");
+      else if (w.issue == IdentifiabilityIssue::wide_interval)
+        rep.warnings.push_back(name + ": 95 % interval spans more than an order of magnitude");
+      else if (w.issue == IdentifiabilityIssue::covariance_unavailable)
+        rep.warnings.push_back(
+            "the parameter covariance is rank-deficient; standard errors are not available");
     }
   }
 }

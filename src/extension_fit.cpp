@@ -126,37 +126,14 @@ struct ExtendedCost {
 
 }  // namespace
 
-// Box of each extension parameter during the fit (F0 the reference force, T the duration).
+// Box of each extension parameter during the fit: the effect table's rule over the record's scales.
 ExtensionBounds extension_parameter_bounds(Effect e, std::string_view name, double f0,
                                            double duration, double vmax) {
   const double inf = std::numeric_limits<double>::infinity();
-  switch (e) {
-    case Effect::viscous:
-      return {0.0, inf};
-    case Effect::stribeck:
-      if (name == "static") return {0.05 * f0, 20.0 * f0};
-      if (name == "stribeck_velocity") return {1e-6 * vmax, 10.0 * vmax};
-      return {0.3, 5.0};
-    case Effect::frictional_lag:
-      return {0.0, duration / 4};
-    case Effect::asymmetry:
-      return {-0.9, 0.9};
-    case Effect::offset:
-      return {-inf, inf};
-    case Effect::inertia:
-      return {0.0, inf};
-    case Effect::position_dependence:
-      if (name == "amplitude") return {-0.9 * f0, 0.9 * f0};
-      if (name == "wavelength") return {1e-12, inf};
-      return {-inf, inf};
-    case Effect::drift:
-      return {-0.9 / duration, 5.0 / duration};
-    case Effect::delay:
-      return {-duration / 10, duration / 10};
-    case Effect::normal_load:
-      return {1e-12, inf};
-  }
-  return {-inf, inf};
+  const EffectParameter* p = find_parameter(e, name);
+  if (!p) return {-inf, inf};
+  const RecordScales scales{f0, duration, vmax};
+  return {p->lower(scales), p->upper(scales)};
 }
 
 // Fits theta (and rho) from the given start; `fix_theta` estimates the initial state only.
@@ -248,6 +225,21 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   out.rho = rho;
   out.ok = summary.IsSolutionUsable();
   out.rss = out.ok ? 2.0 * summary.final_cost * rms * rms : std::numeric_limits<double>::infinity();
+  return out;
+}
+
+double own_reference_ratio(const ExtensionParameters<double>& ext, double own_f0) {
+  return ext.reference_force > 0 ? own_f0 / ext.reference_force : 1.0;
+}
+
+ExtensionParameters<double> to_own_reference(const ExtensionParameters<double>& ext,
+                                             double own_f0) {
+  ExtensionParameters<double> out = ext;
+  const double ratio = own_reference_ratio(ext, own_f0);
+  out.reference_force = 0.0;
+  out.for_each_parameter([&](Effect e, std::string_view name, double& v) {
+    if (find_parameter(e, name)->scales_with_reference_force) v *= ratio;
+  });
   return out;
 }
 

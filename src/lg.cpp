@@ -14,8 +14,10 @@
 #include <sstream>
 #include <utility>
 
+#include "friction/covariance_report.hpp"
 #include "friction/error.hpp"
 #include "friction/motion.hpp"
+#include "nlopt_seed.hpp"
 
 namespace friction {
 namespace {
@@ -280,7 +282,6 @@ Point nlopt_run(nlopt::algorithm algo, const Objective& obj, const Box& box, Poi
     for (std::size_t i = 0; i <= kP; ++i) step[i] = 0.05 * (box.upper[i] - box.lower[i]);
     opt.set_initial_step(step);
   }
-  nlopt::srand(seed);
   struct Ctx {
     const Objective* obj;
     Point best;
@@ -297,6 +298,7 @@ Point nlopt_run(nlopt::algorithm algo, const Objective& obj, const Box& box, Poi
   std::vector<double> v = box.clamp(start.v);
   double f = 0;
   try {
+    const auto seeded = detail::seed_nlopt(seed);
     opt.optimize(v, f);
   } catch (const std::exception&) {
     // NLopt stops on round-off or a budget; the best point seen is kept in ctx.
@@ -912,49 +914,44 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
       ok = false;
     }
     const double sigma2 = rep.estimation.rss / (scale * scale) / std::max(1.0, nd - (kP + 1));
-    if (ok && c.allFinite()) {
-      c *= sigma2;
-      std::string unavailable;
-      for (std::size_t a = 0; a < kP; ++a) {
-        auto& est = rep.parameters[a];
-        const auto ai = static_cast<Eigen::Index>(a);
-        if (null_parameter[a]) {
-          unavailable += (unavailable.empty() ? "" : ", ") + std::string(kSymbols[a]);
-          continue;
-        }
-        const double se_log = std::sqrt(std::max(0.0, c(ai, ai)));
-        const double se = est.value * se_log;
-        est.standard_error = std::isfinite(se) ? se : 0.0;
-        // Log-normal interval, clipped to the search box (where exp(1.96 se_log) overflows or
-        // leaves it, the linearisation says nothing the box does not).
-        const double box_lo = std::exp(box.lower[a]), box_hi = std::exp(box.upper[a]);
-        const double lo = est.value * std::exp(-1.96 * se_log);
-        const double hi = est.value * std::exp(1.96 * se_log);
-        const bool clipped = !(lo >= box_lo) || !(hi <= box_hi);
-        est.lower95 = lo >= box_lo ? lo : std::min(box_lo, est.value);
-        est.upper95 = hi <= box_hi ? hi : std::max(box_hi, est.value);
-        if (est.upper95 > 10.0 * est.lower95) {
-          std::ostringstream w;
-          w << est.name << " (" << kSymbols[a] << "): 95 % interval [" << est.lower95 << ", "
-            << est.upper95 << "]" << unit_text(a)
-            << (clipped ? " (clipped to the search bounds)" : "")
-            << " spans more than an order of magnitude (poorly identified)";
-          rep.warnings.push_back(w.str());
-        }
+    const bool usable = ok && c.allFinite();
+    Eigen::MatrixXd cs = c;
+    if (usable) cs *= sigma2;
+    // The parameters are fitted through their logarithms in a box: log-normal intervals clipped
+    // to the box; a parameter in the null space of J^T J has no standard error.
+    std::vector<CovarianceParameter> cp;
+    for (std::size_t a = 0; a < kP; ++a)
+      cp.push_back({rep.parameters[a].name, rep.parameters[a].unit, rep.parameters[a].value,
+                    Parametrisation::log, 1.0,
+                    null_parameter[a] ? std::ptrdiff_t{-1} : static_cast<std::ptrdiff_t>(a), false,
+                    std::exp(box.lower[a]), std::exp(box.upper[a])});
+    CovarianceOptions report_options;
+    report_options.clip_to_limits = true;
+    const CovarianceReport cr = covariance_report(usable ? &cs : nullptr, cp, report_options);
+    if (usable) {
+      cr.apply(rep.parameters);
+      rep.correlation = cr.correlation;
+    }
+    std::string unavailable;
+    for (const IdentifiabilityWarning& w : cr.warnings) {
+      const std::size_t a = w.parameter;
+      if (w.issue == IdentifiabilityIssue::no_standard_error) {
+        unavailable += (unavailable.empty() ? "" : ", ") + std::string(kSymbols[a]);
+      } else if (w.issue == IdentifiabilityIssue::wide_interval) {
+        const ParameterEstimate& est = rep.parameters[a];
+        std::ostringstream t;
+        t << est.name << " (" << kSymbols[a] << "): 95 % interval [" << est.lower95 << ", "
+          << est.upper95 << "]" << unit_text(a)
+          << (cr.parameters[a].clipped ? " (clipped to the search bounds)" : "")
+          << " spans more than an order of magnitude (poorly identified)";
+        rep.warnings.push_back(t.str());
       }
+    }
+    if (usable) {
       if (!unavailable.empty())
         rep.warnings.push_back(
             "the parameter covariance is rank-deficient; no standard error for " + unavailable +
             " (not identifiable from this record)");
-      for (std::size_t a = 0; a < kP; ++a)
-        for (std::size_t b = 0; b < kP; ++b) {
-          const auto ai = static_cast<Eigen::Index>(a), bi = static_cast<Eigen::Index>(b);
-          const double den = std::sqrt(c(ai, ai) * c(bi, bi));
-          rep.correlation(ai, bi) =
-              a == b
-                  ? 1.0
-                  : (den > 0.0 && !null_parameter[a] && !null_parameter[b] ? c(ai, bi) / den : 0.0);
-        }
       // The trade-offs known for LuGre on records of modest speed (methods.md 8), then any pair.
       const std::array<std::pair<std::size_t, std::size_t>, 2> known{{{4, 5}, {6, 2}}};
       for (const auto& [a, b] : known) {

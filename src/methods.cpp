@@ -75,8 +75,8 @@ IdentifiedModel with_extensions(IdentifiedModel base, const Record& r, const Met
     p.unit = e.unit;
     p.value = e.value;
     p.standard_error = e.standard_error;
-    p.lower95 = e.value - 1.96 * e.standard_error;
-    p.upper95 = e.value + 1.96 * e.standard_error;
+    p.lower95 = e.lower95;  // covariance_report.hpp: symmetric, the pieces are fitted linearly
+    p.upper95 = e.upper95;
     rep.parameters.push_back(p);
   }
   const auto nt = static_cast<Eigen::Index>(rep.parameters.size());

@@ -58,33 +58,6 @@ Json curve_to(const StribeckCurve<double>& c) {
           {"stribeck_exponent", c.stribeck_exponent}};
 }
 
-// Main parameter of each effect: what "--effect NAME=VALUE" sets.
-std::string_view main_parameter(Effect e) {
-  switch (e) {
-    case Effect::viscous:
-      return "viscous";
-    case Effect::stribeck:
-      return "static";
-    case Effect::frictional_lag:
-      return "lag_time";
-    case Effect::asymmetry:
-      return "asymmetry";
-    case Effect::offset:
-      return "offset";
-    case Effect::inertia:
-      return "mass";
-    case Effect::position_dependence:
-      return "amplitude";
-    case Effect::drift:
-      return "relative_rate";
-    case Effect::delay:
-      return "delay";
-    case Effect::normal_load:
-      return "friction_coefficient";
-  }
-  return "";
-}
-
 bool set_parameter(ExtensionParameters<double>& ext, Effect effect, std::string_view name,
                    double value) {
   bool found = false;
@@ -95,15 +68,6 @@ bool set_parameter(ExtensionParameters<double>& ext, Effect effect, std::string_
     }
   });
   return found;
-}
-
-std::string effect_names() {
-  std::string s;
-  for (Effect e : kAllEffects) {
-    if (!s.empty()) s += ", ";
-    s += effect_name(e);
-  }
-  return s;
 }
 
 template <class Base>
@@ -464,7 +428,7 @@ void parse_effect(const std::string& spec, ExtensionParameters<double>& ext) {
   const auto effect = effect_from_name(name);
   if (!effect) fail("unknown effect '" + name + "' (known: " + effect_names() + ")");
   ext.enable(*effect);
-  set_parameter(ext, *effect, main_parameter(*effect), value);
+  set_parameter(ext, *effect, effect_info(*effect).main_parameter, value);
   for (std::size_t i = 1; i < items.size(); ++i) {
     const auto [key, v] = split(items[i]);
     if (!set_parameter(ext, *effect, key, v))

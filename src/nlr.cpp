@@ -11,7 +11,9 @@
 #include <limits>
 #include <sstream>
 
+#include "friction/covariance_report.hpp"
 #include "friction/initial_state.hpp"
+#include "nlopt_seed.hpp"
 #include "slip_regression.hpp"
 
 namespace friction {
@@ -528,7 +530,6 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
     const int per_operator = o.operators > 0 ? 500 : 150;
     opt.set_maxeval(o.global_evaluations > 0 ? o.global_evaluations
                                              : per_operator * static_cast<int>(m));
-    nlopt::srand(o.seed + 7919u * static_cast<unsigned>(round));
     struct Ctx {
       const Data* d;
       std::vector<double> rho;
@@ -547,6 +548,7 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
     std::vector<double> s0 = best.s;
     double f0 = 0;
     try {
+      const auto seeded = detail::seed_nlopt(o.seed + 7919u * static_cast<unsigned>(round));
       opt.optimize(s0, f0);
     } catch (const std::exception&) {
       // NLopt stops on round-off or budget; the best point seen is kept in ctx.
@@ -750,35 +752,38 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
     const bool ok = detail::marginal_covariance(jac, 2 * mi, c, 1e-7);
     const double dof = std::max(1.0, n - 3.0 * static_cast<double>(m));
     const double sigma2 = rep.estimation.rss / (d.scale * d.scale) / dof;
-    if (ok && c.allFinite()) {
-      c *= sigma2;
-      for (Eigen::Index a = 0; a < 2 * mi; ++a) {
-        auto& est = rep.parameters[static_cast<std::size_t>(a)];
-        const double se_log = std::sqrt(std::max(0.0, c(a, a)));
-        est.standard_error = est.value * se_log;
-        est.lower95 = est.value * std::exp(-1.96 * se_log);
-        est.upper95 = est.value * std::exp(1.96 * se_log);
-        if (est.upper95 / est.lower95 > 10.0) {
-          std::ostringstream w;
-          w << est.name << ": 95 % interval [" << est.lower95 << ", " << est.upper95 << "] "
+    const bool usable = ok && c.allFinite();
+    if (usable) c *= sigma2;
+    // Stiffnesses and thresholds are fitted through their logarithms: log-normal intervals.
+    std::vector<CovarianceParameter> cp;
+    for (std::size_t a = 0; a < 2 * m; ++a)
+      cp.push_back({rep.parameters[a].name, rep.parameters[a].unit, rep.parameters[a].value,
+                    Parametrisation::log, 1.0, static_cast<std::ptrdiff_t>(a)});
+    CovarianceOptions co;
+    co.correlation_limit = 0.99;
+    const CovarianceReport cr = covariance_report(usable ? &c : nullptr, cp, co);
+    cr.apply(rep.parameters);
+    rep.correlation = cr.correlation;
+    for (const IdentifiabilityWarning& w : cr.warnings) {
+      const ParameterEstimate& est = rep.parameters[w.parameter];
+      std::ostringstream t;
+      switch (w.issue) {
+        case IdentifiabilityIssue::wide_interval:
+          t << est.name << ": 95 % interval [" << est.lower95 << ", " << est.upper95 << "] "
             << est.unit << " spans more than an order of magnitude (poorly identified)";
-          rep.warnings.push_back(w.str());
-        }
-        for (Eigen::Index b = 0; b < 2 * mi; ++b) {
-          const double den = std::sqrt(c(a, a) * c(b, b));
-          rep.correlation(a, b) = den > 0.0 ? c(a, b) / den : (a == b ? 1.0 : 0.0);
-        }
+          break;
+        case IdentifiabilityIssue::correlated:
+          t << est.name << " and " << rep.parameters[w.other].name
+            << " are correlated above 0.99 (near-singular)";
+          break;
+        case IdentifiabilityIssue::covariance_unavailable:
+          t << "the parameter covariance is rank-deficient (some parameters are not identifiable "
+               "from this record); standard errors are not available";
+          break;
+        default:
+          continue;
       }
-      for (Eigen::Index a = 0; a < 2 * mi; ++a)
-        for (Eigen::Index b = a + 1; b < 2 * mi; ++b)
-          if (std::abs(rep.correlation(a, b)) > 0.99)
-            rep.warnings.push_back(rep.parameters[static_cast<std::size_t>(a)].name + " and " +
-                                   rep.parameters[static_cast<std::size_t>(b)].name +
-                                   " are correlated above 0.99 (near-singular)");
-    } else {
-      rep.warnings.push_back(
-          "the parameter covariance is rank-deficient (some parameters are not identifiable from "
-          "this record); standard errors are not available");
+      rep.warnings.push_back(t.str());
     }
   }
   for (std::size_t i = 0; i < m; ++i) {

@@ -91,8 +91,8 @@ TEST(Diagnose, ShortViscousRecordGivesAChainedFindingAndTheContractKeys) {
   const Record val = with_noise(make_clean(Injected::viscous, 40.0, ex, 3000, 3.0), sigma, 4);
   const Diagnosis d = diagnose(est, val);
   ASSERT_EQ(d.findings.size(), 1u) << d.to_table();
-  EXPECT_EQ(d.findings[0].effect, "viscous");
-  EXPECT_NEAR(d.findings[0].parameters["viscous"].get<double>(), 40.0, 6.0);
+  EXPECT_EQ(d.findings[0].name(), "viscous");
+  EXPECT_NEAR(d.findings[0].parameter("viscous"), 40.0, 6.0);
   const Json j = d.to_json();
   for (const char* key : {"baseline", "findings", "final"}) EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_EQ(j["baseline"]["model"]["type"], "maxwell-slip");
@@ -113,6 +113,22 @@ TEST(Diagnose, ShortViscousRecordGivesAChainedFindingAndTheContractKeys) {
   EXPECT_NEAR(extended_validation_percent(m.base().parameters(), m.extensions(), val),
               d.final_validation_percent, 1e-6 * d.final_validation_percent + 1e-12);
   EXPECT_NE(d.to_table().find("cause: viscous"), std::string::npos);
+  // Standard errors of the fit at the finding's step, and of the final joint fit (the same fit
+  // here): Gauss-Newton, symmetric intervals (the piece is fitted linearly), and the injected
+  // value within a few of them.
+  const double value = f["parameters"]["viscous"].get<double>();
+  const double se = f["standard_errors"]["viscous"].get<double>();
+  ASSERT_TRUE(std::isfinite(se));
+  EXPECT_GT(se, 0.0);
+  EXPECT_LT(se, 6.0);
+  EXPECT_DOUBLE_EQ(f["intervals"]["viscous"][0].get<double>(), value - 1.96 * se);
+  EXPECT_DOUBLE_EQ(f["intervals"]["viscous"][1].get<double>(), value + 1.96 * se);
+  EXPECT_LT(std::abs(value - 40.0), 5.0 * se) << value << " +- " << se;
+  const Json& piece = j["final"]["pieces"]["viscous"]["viscous"];
+  EXPECT_EQ(piece["value"].get<double>(), value);
+  EXPECT_EQ(piece["standard_error"].get<double>(), se);
+  EXPECT_EQ(piece["unit"], "N s/m");
+  EXPECT_FALSE(piece["at_bound"].get<bool>());
 }
 
 // A LuGre baseline on a multi-element Maxwell Slip record: the single state misses the nonlocal
@@ -125,11 +141,15 @@ TEST(Diagnose, LuGreBaselineFindsNonlocalMemory) {
   o.baseline = "lugre";
   const Diagnosis d = diagnose(est, val, o);
   ASSERT_FALSE(d.findings.empty()) << d.to_table();
-  EXPECT_EQ(d.findings[0].effect, "nonlocal-memory");
-  EXPECT_GE(d.findings[0].parameters["elements"].get<int>(), 2);
+  EXPECT_EQ(d.findings[0].name(), "nonlocal-memory");
+  EXPECT_GE(d.findings[0].elements, 2u);
   EXPECT_LT(d.findings[0].validation_after, d.findings[0].validation_before);
   EXPECT_EQ(d.final_model->type(), "maxwell-slip");
   EXPECT_DOUBLE_EQ(d.findings.back().validation_after, d.final_validation_percent);
+  // The element count is not estimated with a covariance: no standard error, said as null.
+  const Json f = d.to_json()["findings"][0];
+  EXPECT_TRUE(f["standard_errors"]["elements"].is_null());
+  EXPECT_TRUE(f["intervals"]["elements"].is_null());
 }
 
 TEST(DiagnoseCli, JsonDocumentFollowsTheContract) {

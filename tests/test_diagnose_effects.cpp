@@ -98,12 +98,12 @@ TEST_P(EffectStudy, NamesTheEffectFirstRecoversItsParameterAndGains) {
               ratio, secs, d.to_table().c_str());
   ASSERT_FALSE(d.findings.empty()) << "nothing found";
   const Finding& f = d.findings.front();
-  EXPECT_EQ(f.effect, injected_name(c.effect));
-  if (f.effect == injected_name(c.effect)) {
+  EXPECT_EQ(f.name(), injected_name(c.effect));
+  if (f.name() == injected_name(c.effect)) {
     for (const char* name : {c.parameter, c.secondary}) {
       if (!name) continue;
-      ASSERT_TRUE(f.parameters.contains(name)) << f.parameters.dump();
-      const double got = f.parameters[name].get<double>();
+      ASSERT_TRUE(f.has_parameter(name)) << f.to_json()["parameters"].dump();
+      const double got = f.parameter(name);
       const double want = truth(c.effect, name, m, lag, sys);
       const double tol = name == c.parameter ? c.tolerance : c.secondary_tolerance;
       EXPECT_NEAR(got, want, tol * std::abs(want))
@@ -160,7 +160,7 @@ TEST(TwoEffects, ViscousAndOffsetAreBothFound) {
   const Diagnosis d = diagnose(make(0.0, 11), make(4.0, 12));
   std::printf("%s", d.to_table().c_str());
   ASSERT_EQ(d.findings.size(), 2u);
-  std::vector<std::string> names{d.findings[0].effect, d.findings[1].effect};
+  std::vector<std::string> names{d.findings[0].name(), d.findings[1].name()};
   std::sort(names.begin(), names.end());
   EXPECT_EQ(names, (std::vector<std::string>{"offset", "viscous"}));
   EXPECT_DOUBLE_EQ(d.findings[0].validation_after, d.findings[1].validation_before);

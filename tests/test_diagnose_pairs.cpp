@@ -86,7 +86,7 @@ TEST_P(PairStudy, BothEffectsAreFoundAndTheChainHolds) {
               d.to_table().c_str());
 
   std::vector<std::string> names;
-  for (const auto& f : d.findings) names.push_back(f.effect);
+  for (const auto& f : d.findings) names.push_back(f.name());
   std::sort(names.begin(), names.end());
   std::vector<std::string> want{injected_name(c.first.effect), injected_name(c.second.effect)};
   std::sort(want.begin(), want.end());
@@ -156,13 +156,13 @@ INSTANTIATE_TEST_SUITE_P(Pairs, PairStudy, ::testing::ValuesIn(kPairs),
 // Ambiguity.
 
 bool names(const Finding& f, const std::string& partner) {
-  return std::find(f.ambiguous_with.begin(), f.ambiguous_with.end(), partner) !=
-         f.ambiguous_with.end();
+  const std::vector<std::string> alternatives = f.ambiguous_with_names();
+  return std::find(alternatives.begin(), alternatives.end(), partner) != alternatives.end();
 }
 
 const Finding* finding_of(const Diagnosis& d, const std::string& effect) {
   for (const auto& f : d.findings)
-    if (f.effect == effect) return &f;
+    if (f.name() == effect) return &f;
   return nullptr;
 }
 
@@ -184,10 +184,10 @@ TEST(Ambiguity, InertiaAndPositionUnderOneWaySlidingWithOneFrequency) {
   std::printf("[ one-way ripple, mass %.4g ]\n%s", mass, d.to_table().c_str());
   ASSERT_FALSE(d.findings.empty());
   const Finding& f = d.findings.front();
-  ASSERT_TRUE(f.effect == "inertia" || f.effect == "position-dependence") << f.effect;
-  const std::string partner = f.effect == "inertia" ? "position-dependence" : "inertia";
-  EXPECT_TRUE(names(f, partner)) << f.sentence;
-  EXPECT_FALSE(f.separating_excitation.empty());
+  ASSERT_TRUE(f.name() == "inertia" || f.name() == "position-dependence") << f.name();
+  const std::string partner = f.name() == "inertia" ? "position-dependence" : "inertia";
+  EXPECT_TRUE(names(f, partner)) << f.sentence();
+  EXPECT_FALSE(f.separating_excitation().empty());
   EXPECT_TRUE(d.to_json()["findings"][0].contains("ambiguous_with"));
 }
 
@@ -200,7 +200,7 @@ TEST(Ambiguity, InertiaIsNotFlaggedWhereTheExcitationSeparatesIt) {
   std::printf("[ envelope, mass %.4g ]\n%s", mass, d.to_table().c_str());
   const Finding* f = finding_of(d, "inertia");
   ASSERT_NE(f, nullptr);
-  EXPECT_TRUE(f->ambiguous_with.empty()) << f->sentence;
+  EXPECT_TRUE(f->ambiguous_with.empty()) << f->sentence();
 }
 
 // Viscous friction at a single sliding speed is a higher Coulomb level.  Strokes at one speed
@@ -223,12 +223,12 @@ TEST(Ambiguity, ViscousAtOneSpeedIsFlaggedAndAtFiveSpeedsIsNot) {
       // Either nothing is claimed (the thresholds absorb the level) or the finding says why it
       // cannot be sure.
       if (f) {
-        EXPECT_FALSE(f->ambiguous_with.empty()) << f->sentence;
-        EXPECT_FALSE(f->separating_excitation.empty());
+        EXPECT_FALSE(f->ambiguous_with.empty()) << f->sentence();
+        EXPECT_FALSE(f->separating_excitation().empty());
       }
     } else {
       ASSERT_NE(f, nullptr);
-      EXPECT_TRUE(f->ambiguous_with.empty()) << f->sentence;
+      EXPECT_TRUE(f->ambiguous_with.empty()) << f->sentence();
     }
   }
 }

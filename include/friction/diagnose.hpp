@@ -17,11 +17,9 @@
 //      * across time shifts: the normalised cross-correlation of e with the displacement
 //        increments at lags of +-L samples, and the lag that best explains e as a shift of the
 //        simulated force (the delay's signature).
-//    The Stribeck signature is searched over vs on the 2-75 % quantiles of the sliding speeds and
-//    on a log grid from their 95 % quantile down by a factor 100: on stroke records with rests,
-//    operators that stop at their thresholds count as sliding at |v| ~ 0, the low quantiles fall
-//    to ~1e-7 m/s, and a fit started there did not move (a Stribeck effect at 5.4 times the noise
-//    went unfound on one of six such records).  The candidates are ranked by `explained`.  The
+//    Each effect's signature, its grid (the one Stribeck start grid of the library, with the
+//    measurement behind it) and the start it gives are rows of effect_table.hpp.  The candidates
+//    are ranked by `explained`.  The
 //    ranking is not trusted alone: every candidate the record can support (normal-load needs a
 //    normal force) is fitted.
 //
@@ -111,6 +109,19 @@
 // initial deflections are estimated from the validation record (estimate_initial_deflections
 // for the plain model as a start, refined by Ceres through the extended model), nothing else is
 // re-estimated, and every sample counts.
+//
+// 6. Uncertainty.  Every finding carries the standard errors and 95 % intervals of its parameters
+//    in the fit of its step of the chain, and the final model the standard errors of all its
+//    pieces (`final.pieces`, the shape `identify --extension` uses): the Gauss-Newton covariance
+//    of that joint fit on the estimation record (report_extended_slip, covariance_report.hpp);
+//    the pieces are fitted linearly, so the intervals are symmetric.  A parameter at a bound of its
+//    box, or a rank-deficient fit, has none (null).
+//
+// Stages.  diagnose() runs named stages over typed data (src/diagnose_stages.hpp): the baseline,
+// the evidence of the current model, the candidate fits (each takes its inputs by const reference
+// and returns a value, so candidates can be fitted concurrently), the acceptance rule (a Verdict),
+// the greedy forward pass, the backward pass, and the report.  Findings, evidence and verdicts are
+// structs and enums; text and JSON are made only by to_json / to_table / Verdict::to_text.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -118,8 +129,11 @@
 #include <cstddef>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
+#include "friction/effect_table.hpp"
+#include "friction/extension_fit.hpp"
 #include "friction/extensions.hpp"
 #include "friction/maxwell_slip.hpp"
 #include "friction/methods.hpp"
@@ -151,7 +165,7 @@ struct EffectEvidence {
   Effect effect{};
   double explained = 0;    ///< share of the residual sum of squares explained, 0..1
   double coefficient = 0;  ///< regression coefficient (the fit's start), SI
-  std::string detail;      ///< e.g. the wavelength or lag used
+  EffectStart start;       ///< the typed start (grid point, wavelength, shift) of the fit
 };
 
 /// What the current model's simulation gets wrong on one record.
@@ -177,6 +191,43 @@ struct ResidualEvidence {
   Json to_json() const;
 };
 
+/// Why a candidate earns its place or not: the rules of section 4 and the nested checks.
+struct Verdict {
+  /// Rule (c): the validation record is consulted only when rules (a) and (b) pass.
+  enum class Validation {
+    not_evaluated,        ///< rules (a) or (b) failed first
+    falls,                ///< lower than the current model's
+    does_not_fall,        ///< not lower
+    computed_for_report,  ///< computed afterwards, for a warning only (never for the acceptance)
+  };
+  /// Nested candidates (header comment): checks after the rules.
+  enum class Nested {
+    none,
+    lag_below_one_sample,    ///< frictional-lag's lag fitted below one sample period
+    no_better_than_viscous,  ///< frictional-lag with its companion no better than viscous (BIC)
+  };
+  bool fitted = true;             ///< false: the fit found no usable solution
+  std::string failure;            ///< what the fit threw (empty: it ended unusable)
+  double delta_bic = 0;           ///< rule (a): BIC(candidate) - BIC(current)
+  double drop = 0;                ///< rule (b): RSS0 - RSS1 [N^2]
+  double required = 0;            ///< rule (b): what the drop must exceed [N^2]
+  bool operator_limited = false;  ///< (b) failed only on what one more operator buys
+  Validation validation = Validation::not_evaluated;
+  double validation_before = 0;  ///< RSS/SSS % of the current model (rule c)
+  double validation_after = 0;   ///< RSS/SSS % of the candidate (rule c)
+  Nested nested = Nested::none;
+
+  bool bic_falls() const { return delta_bic < 0; }
+  bool drop_exceeds() const { return drop > required; }
+  /// Rules (a) and (b): the validation record may be consulted.
+  bool passes_estimation_rules() const { return fitted && bic_falls() && drop_exceeds(); }
+  bool earns_place() const {
+    return passes_estimation_rules() && validation == Validation::falls && nested == Nested::none;
+  }
+  /// The reasons, for people (the `verdict` of the document).
+  std::string to_text() const;
+};
+
 /// One candidate fitted on top of the accepted extensions.
 struct CandidateFit {
   Effect effect{};
@@ -190,20 +241,54 @@ struct CandidateFit {
   double required_drop = 0;  ///< rule (b) [N^2]
   double validation_percent = 0;
   bool earns_place = false;
-  std::string verdict;  ///< why it was accepted or not
-  double seconds = 0;   ///< fit and validation of this candidate
+  Verdict verdict;     ///< why it was accepted or not
+  double seconds = 0;  ///< fit and validation of this candidate
+};
+
+/// What a finding may be confused with: its partner effect (methods.md 7), or, for a velocity
+/// piece at one speed, a higher Coulomb level (no effect).
+struct Alternative {
+  std::optional<Effect> effect;
+  std::string name() const;
+};
+
+/// The partner's fit in the round that accepted a finding (section 5).
+struct PartnerEvidence {
+  Effect effect{};
+  bool earns_place = false;
+  double log_likelihood_ratio = 0;  ///< N ln(RSS_partner / RSS_accepted)
 };
 
 struct Finding {
-  std::string effect;     ///< methods.md 7 name
-  Json evidence;          ///< what the residual showed (validation record) + fit statistics
-  std::string extension;  ///< how the model was extended
-  Json parameters;        ///< methods.md 7 names, SI
+  std::optional<Effect> effect;  ///< nullopt: nonlocal-memory (the LuGre baseline's finding)
+  std::size_t elements = 0;      ///< nonlocal-memory: the Maxwell Slip elements that replace LuGre
+  /// The piece's parameters (and a companion's, effect table), methods.md 7 names, SI, the model's
+  /// own F0, with standard errors and intervals of the fit at this step (section 6).
+  std::vector<ExtensionEstimate> parameters;
   double validation_before = 0, validation_after = 0;  ///< RSS/SSS %
   double estimation_before = 0, estimation_after = 0;  ///< RSS/SSS %
-  std::vector<std::string> ambiguous_with;
-  std::string separating_excitation;
-  std::string sentence;  ///< one sentence for people
+  double delta_bic = 0;                                ///< on the estimation record
+  double noise_floor_rss = 0;                          ///< N sigma^2 of the estimation record
+  /// The residual of the model before this finding on the validation record (none for
+  /// nonlocal-memory), and the share of it this effect's signature explains.
+  std::optional<ResidualEvidence> residual;
+  double signature_explained = 0;
+  std::optional<PartnerEvidence> partner;
+  std::vector<Alternative> ambiguous_with;
+
+  /// methods.md 7 name ("viscous", ..., "nonlocal-memory").
+  std::string name() const;
+  bool has_parameter(std::string_view name) const;
+  /// Value of a parameter (throws InvalidParameter when the finding has none of that name).
+  double parameter(std::string_view name) const;
+  std::vector<std::string> ambiguous_with_names() const;
+  /// How the model was extended (effect table).
+  std::string extension() const;
+  /// The excitation that would separate the alternatives (empty when not ambiguous).
+  std::string separating_excitation() const;
+  /// One sentence for people.
+  std::string sentence() const;
+  Json to_json() const;
 };
 
 struct Diagnosis {
@@ -215,6 +300,8 @@ struct Diagnosis {
   std::optional<AnyModel> final_model;
   double final_validation_percent = 0;
   double final_estimation_percent = 0;
+  /// The final model's pieces with the standard errors of the final joint fit (section 6).
+  std::vector<ExtensionEstimate> final_pieces;
   std::vector<CandidateFit> first_round;  ///< every candidate of the first round, for reporting
   std::vector<std::string> warnings;
   double seconds = 0;

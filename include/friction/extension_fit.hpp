@@ -18,14 +18,30 @@
 #pragma once
 
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "friction/extensions.hpp"
+#include "friction/identification.hpp"
 #include "friction/maxwell_slip.hpp"
 #include "friction/record.hpp"
 
 namespace friction {
+
+/// One fitted parameter of a piece, in the model's own F0 (covariance_report.hpp).
+struct ExtensionEstimate {
+  Effect effect{};
+  std::string name;  ///< methods.md 7 name ("viscous", "static", "mass", ...)
+  std::string unit;  ///< SI
+  double value = 0;
+  double standard_error = 0;  ///< 0 when not available (at a bound, rank-deficient covariance)
+  bool at_bound = false;
+  bool available = false;           ///< has a standard error
+  double lower95 = 0, upper95 = 0;  ///< 95 % interval (pieces are fitted linearly: symmetric)
+};
 
 /// Residuals (F - Fhat) * scale of `model`'s free run on the record, from the state the model
 /// holds: the loop of every extension cost functor (Maxwell Slip here, the other bases in
@@ -79,6 +95,26 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
                                   const std::vector<double>& rho0,
                                   const ExtensionParameters<double>& ext0, bool fix_theta,
                                   int max_iterations);
+
+/// The pieces with the parameters that refer to F0 (effect table: `static`, `amplitude`,
+/// `friction_coefficient`) converted from the fit's fixed reference force (ext.reference_force) to
+/// `own_f0`, the sliding force of the fitted base, with reference_force 0: what a saved model uses.
+ExtensionParameters<double> to_own_reference(const ExtensionParameters<double>& ext, double own_f0);
+
+/// The factor to_own_reference multiplies those parameters by (1 without a reference force).
+double own_reference_ratio(const ExtensionParameters<double>& ext, double own_f0);
+
+/// Standard errors and 95 % intervals of a joint fit at its optimum on the record `r` it was
+/// fitted on: the Gauss-Newton covariance of theta = [log k, log Delta, pieces] with the relative
+/// initial deflections as nuisance parameters (those at +-1 held), through covariance_report.hpp.
+/// Parameters at a bound of their box have no standard error; a rank-deficient J^T J gives none.
+struct ExtendedSlipReport {
+  std::vector<ExtensionEstimate> pieces;  ///< in the model's own F0, symmetric intervals
+  std::vector<ParameterEstimate> base;    ///< stiffness[i], threshold[i]: log-normal intervals
+  Eigen::MatrixXd correlation;            ///< of [base, pieces]
+  bool rank_deficient = false;
+};
+ExtendedSlipReport report_extended_slip(const Record& r, const ExtendedSlipFit& fit);
 
 /// delta_i(0) = rho_i Delta_i.
 std::vector<double> deflections_from_relative(const MaxwellSlipParameters<double>& base,

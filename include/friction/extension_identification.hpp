@@ -9,12 +9,12 @@
 // 1. Maxwell Slip base (NLR).  The base and all requested pieces are refitted jointly with
 //    fit_extended_slip (extension_fit.hpp): theta = [log k_i, log Delta_i, piece parameters], the
 //    relative initial deflections rho_i estimated with them.  Each piece starts from the residual
-//    evidence of the current model (analyse_residual / extension_start of diagnose.hpp: the
-//    regression coefficient of the effect's signature, the best wavelength of a grid, the lag of
-//    the cross-correlation).  During the fit the level pieces refer to the fixed F0 of the NLR
-//    model (a common scale of the thresholds stays identifiable); `static`, `amplitude` and
-//    `friction_coefficient` are converted to the fitted model's own F0 at the end, which is what a
-//    saved model uses.
+//    evidence of the current model (analyse_residual / extension_start of diagnose.hpp, the
+//    effect table's start_from_evidence: the regression coefficient of the effect's signature,
+//    the best point of its grid, the lag of the cross-correlation).  During the fit the level
+//    pieces refer to the fixed F0 of the NLR model (a common scale of the thresholds stays
+//    identifiable); `static`, `amplitude` and `friction_coefficient` are converted to the fitted
+//    model's own F0 at the end, which is what a saved model uses.
 //
 //    Restart.  The NLR base was identified on a force that holds the effects, and a local refit
 //    from it can keep its distortion: with a Stribeck level and an offset together the joint fit
@@ -48,18 +48,20 @@
 //    deflections for DNLRX) are fitted with the base parameters HELD at their estimate, by Ceres
 //    (Levenberg-Marquardt, automatic derivatives through Extended<LuGre<Jet>> /
 //    Extended<Dnlrx<Jet>> and simulate_extended; the LuGre exact step is a template), the pieces
-//    started from regressions of the base's residual on each effect's signature (regression_start
-//    in the source).  Then (refit_base, the default) everything is refitted together from there:
-//    DNLRX filters in N/m and log thresholds in [q, L], coefficients its identification dropped
-//    for rank deficiency kept at 0; the seven LuGre parameters in SI, boxed to their domain, a
-//    sigma1 or sigma2 left at 0 kept at 0.  The joint result is kept when it lowers the RSS, and
-//    `base` in the report says which ("refitted jointly" or "held").  Holding alone is not enough:
-//    a base identified on a force that holds the effect has absorbed part of it.  Measured on a
-//    4-operator record with an offset of 0.02 N (4000 samples, noise 2 mN): DNLRX (n = nx = 0)
-//    alone 0.275 %; held 0.0669 %, offset 0.0153 N; joint 0.00363 %, offset 0.0200 N.  A LuGre
-//    system with an offset of 0.1 N: LG alone 0.434 %, joint 0.00116 %, offset 0.10006 N.  (A
-//    LuGre base on a Maxwell Slip record cannot separate an offset from its structural misfit:
-//    0.040 N for a true 0.02 N -- methods.md 8 on what LuGre cannot represent.)
+//    started from regressions of the base's residual on each effect's signature
+//    (start_from_regression of effect_table.hpp, with the one Stribeck start grid).  Then
+//    (refit_base, the default) everything is refitted together from there: DNLRX filters in N/m and
+//    log thresholds in [q, L], coefficients its identification dropped for rank deficiency kept at
+//    0; the seven LuGre parameters in SI, boxed to their domain, a sigma1 or sigma2 left at 0 kept
+//    at 0.  The joint result is kept when it lowers the RSS, and `base` in the report says which
+//    ("refitted jointly" or "held").  Holding alone is not enough: a base identified on a force
+//    that holds the effect has absorbed part of it.  Measured on a 4-operator record with an offset
+//    of 0.02 N (4000 samples, noise 2 mN): DNLRX (n = nx = 0) alone 0.275 %; held 0.0669 %, offset
+//    0.0153 N; joint 0.00363 %, offset 0.0200 N.  A LuGre system with an offset of 0.1 N: LG alone
+//    0.434 %, joint 0.00116 %, offset 0.10006 N.  (A LuGre base on a Maxwell Slip record cannot
+//    separate an offset from its structural misfit: 0.040 N for a true 0.02 N -- methods.md 8 on
+//    what LuGre cannot represent.)
+//
 //    Combinations that duplicate what the base already has are refused (InvalidParameter):
 //      lugre: viscous (sigma2), stribeck (Fs, vs, mu) and frictional-lag (the bristle dynamics,
 //             and the lag acts through the viscous/Stribeck pieces the base already holds);
@@ -69,7 +71,10 @@
 //    (it would have no effect alone) and says so.
 //
 // 3. Report.  Every piece's parameters in SI with the names of methods.md 7, and standard errors
-//    from the Gauss-Newton covariance at the optimum of the final fit,
+//    (through covariance_report.hpp, in the parametrisation each parameter is fitted in: log-normal
+//    intervals for log k, log Delta and DNLRX's log Delta, symmetric for the pieces, the DNLRX
+//    filters and the LuGre parameters, which are refitted in SI) from the Gauss-Newton covariance
+//    at the optimum of the final fit,
 //        cov = s^2 (J^T J)^-1,   s^2 = RSS / (N - p),
 //    over the free parameters (the base's when it was refitted, and the initial state), J the
 //    Jacobian of the free-run residuals (automatic derivatives).
@@ -96,6 +101,11 @@
 //    gave 0.0029 %; with the three starts 0.0029 %.  `validate --model-file` scores a saved
 //    extended model by exactly this procedure, so it reproduces the identify figure on the
 //    estimation record.  (`simulate --model-file` starts from rest, as for every model.)
+//
+// Files: the model families, their fit and covariance in src/extension_families.hpp; the Maxwell
+// Slip path (1) in src/extension_identify_slip.cpp; the held LuGre / DNLRX path (2) in
+// src/extension_identify_held.cpp; the report (3) and the free run (4) in
+// src/extension_identification.cpp.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -108,6 +118,7 @@
 #include <utility>
 #include <vector>
 
+#include "friction/extension_fit.hpp"
 #include "friction/extensions.hpp"
 #include "friction/identification.hpp"
 #include "friction/metrics.hpp"
@@ -128,16 +139,6 @@ struct ExtensionFitOptions {
   std::size_t operators = 0;      ///< the restart's M (0: selected by BIC up to max_operators)
   std::size_t max_operators = 0;  ///< 0: NLR's default
   bool global_stage = false;      ///< the restart's NLR global stage
-};
-
-/// One fitted parameter of a piece.
-struct ExtensionEstimate {
-  Effect effect{};
-  std::string name;  ///< methods.md 7 name ("viscous", "static", "mass", ...)
-  std::string unit;  ///< SI
-  double value = 0;
-  double standard_error = 0;  ///< 0 when not available (at a bound, rank-deficient covariance)
-  bool at_bound = false;
 };
 
 /// What identify_extensions returns.
@@ -164,6 +165,10 @@ struct ExtensionIdentification {
   /// unit, standard_error, at_bound}}}, "no_evidence": [...], "estimation_before", ...}
   Json to_json() const;
 };
+
+/// The pieces' estimates as the documents show them: {effect: {param: {value, unit,
+/// standard_error, at_bound}}} (standard_error 0 when not available).
+Json pieces_to_json(const std::vector<ExtensionEstimate>& estimates);
 
 /// The section 7 names, comma-separated, for messages.
 std::string extension_names();

@@ -2,7 +2,8 @@
 //
 // A record with no hidden effect is a Maxwell Slip system; each effect of section 7 is added on top
 // of a base model (MaxwellSlip, Dnlrx, Gms, LuGre, StaticFriction, ...) by `Extended<Base>`, whose
-// parameters `ExtensionParameters<T>` hold one optional piece per effect, named as in section 7.
+// parameters `ExtensionParameters<T>` hold one optional piece per effect, named as in section 7
+// (what each effect is -- its names, units, boxes, starts -- is the table of effect_table.hpp).
 // Pieces are independent and compose: any subset may be enabled.
 //
 // Two kinds of pieces (section 7):
@@ -81,9 +82,11 @@
 #include <optional>
 #include <span>
 #include <string_view>
+#include <tuple>
 #include <utility>
 #include <vector>
 
+#include "friction/effect_table.hpp"
 #include "friction/error.hpp"
 #include "friction/model_concept.hpp"
 #include "friction/motion.hpp"
@@ -92,112 +95,98 @@
 
 namespace friction {
 
-/// The extension pieces, one per effect of methods.md section 7 (`nonlocal-memory` is a number
-/// of Maxwell Slip elements, not a piece).
-enum class Effect {
-  viscous,
-  stribeck,
-  frictional_lag,
-  asymmetry,
-  offset,
-  inertia,
-  position_dependence,
-  drift,
-  delay,
-  normal_load,
-};
-
-inline constexpr std::array<Effect, 10> kAllEffects = {
-    Effect::viscous, Effect::stribeck,   Effect::frictional_lag,      Effect::asymmetry,
-    Effect::offset,  Effect::inertia,    Effect::position_dependence, Effect::drift,
-    Effect::delay,   Effect::normal_load};
-
-/// The fixed name of methods.md section 7 ("frictional-lag", "position-dependence", ...).
-constexpr std::string_view effect_name(Effect e) noexcept {
-  switch (e) {
-    case Effect::viscous:
-      return "viscous";
-    case Effect::stribeck:
-      return "stribeck";
-    case Effect::frictional_lag:
-      return "frictional-lag";
-    case Effect::asymmetry:
-      return "asymmetry";
-    case Effect::offset:
-      return "offset";
-    case Effect::inertia:
-      return "inertia";
-    case Effect::position_dependence:
-      return "position-dependence";
-    case Effect::drift:
-      return "drift";
-    case Effect::delay:
-      return "delay";
-    case Effect::normal_load:
-      return "normal-load";
-  }
-  return "";
-}
-
-/// The effect of a section 7 name; nullopt for unknown names (and for "nonlocal-memory").
-constexpr std::optional<Effect> effect_from_name(std::string_view name) noexcept {
-  for (Effect e : kAllEffects)
-    if (effect_name(e) == name) return e;
-  return std::nullopt;
-}
-
-/// True for the pieces that scale the slip forces (through Motion::level).
-constexpr bool is_level_effect(Effect e) noexcept {
-  return e == Effect::stribeck || e == Effect::asymmetry || e == Effect::position_dependence ||
-         e == Effect::drift || e == Effect::normal_load;
-}
-
 // The pieces' parameters.  Member names are methods.md section 7's (`static` -> static_force).
 
 template <typename T>
 struct ViscousExtension {
   T viscous{0};  ///< sigma2 [N s/m], >= 0
+  auto fields() { return std::tie(viscous); }
+  auto fields() const { return std::tie(viscous); }
 };
 template <typename T>
 struct StribeckExtension {
   T static_force{0};          ///< "static": the force at rest [N], > 0 (vs the base's F0)
   T stribeck_velocity{1e-3};  ///< vs [m/s], > 0
   T stribeck_exponent{2.0};   ///< q [-], > 0
+  auto fields() { return std::tie(static_force, stribeck_velocity, stribeck_exponent); }
+  auto fields() const { return std::tie(static_force, stribeck_velocity, stribeck_exponent); }
 };
 template <typename T>
 struct FrictionalLagExtension {
   T lag_time{0};  ///< tau [s], >= 0 (0: no lag)
+  auto fields() { return std::tie(lag_time); }
+  auto fields() const { return std::tie(lag_time); }
 };
 template <typename T>
 struct AsymmetryExtension {
   T asymmetry{0};  ///< a = (F+ - F-)/(F+ + F-), in (-1, 1)
+  auto fields() { return std::tie(asymmetry); }
+  auto fields() const { return std::tie(asymmetry); }
 };
 template <typename T>
 struct OffsetExtension {
   T offset{0};  ///< c [N]
+  auto fields() { return std::tie(offset); }
+  auto fields() const { return std::tie(offset); }
 };
 template <typename T>
 struct InertiaExtension {
   T mass{0};  ///< m [kg], >= 0
+  auto fields() { return std::tie(mass); }
+  auto fields() const { return std::tie(mass); }
 };
 template <typename T>
 struct PositionExtension {
   T amplitude{0};   ///< A [N], |A| < F0
   T wavelength{1};  ///< lambda [m], > 0
   T phase{0};       ///< phi [rad]
+  auto fields() { return std::tie(amplitude, wavelength, phase); }
+  auto fields() const { return std::tie(amplitude, wavelength, phase); }
 };
 template <typename T>
 struct DriftExtension {
   T relative_rate{0};  ///< r [1/s]
+  auto fields() { return std::tie(relative_rate); }
+  auto fields() const { return std::tie(relative_rate); }
 };
 template <typename T>
 struct DelayExtension {
   T delay{0};  ///< D [s], > 0 when the force lags the displacement
+  auto fields() { return std::tie(delay); }
+  auto fields() const { return std::tie(delay); }
 };
 template <typename T>
 struct NormalLoadExtension {
   T friction_coefficient{1};  ///< mu = F0 / N_ref [-], > 0
+  auto fields() { return std::tie(friction_coefficient); }
+  auto fields() const { return std::tie(friction_coefficient); }
 };
+
+// Each piece lists its members (fields()) in the order of its parameters in the effect table.
+namespace detail {
+template <class Piece>
+constexpr std::size_t field_count = std::tuple_size_v<decltype(std::declval<Piece&>().fields())>;
+}  // namespace detail
+static_assert(detail::field_count<ViscousExtension<double>> ==
+              effect_info(Effect::viscous).parameters.size());
+static_assert(detail::field_count<StribeckExtension<double>> ==
+              effect_info(Effect::stribeck).parameters.size());
+static_assert(detail::field_count<FrictionalLagExtension<double>> ==
+              effect_info(Effect::frictional_lag).parameters.size());
+static_assert(detail::field_count<AsymmetryExtension<double>> ==
+              effect_info(Effect::asymmetry).parameters.size());
+static_assert(detail::field_count<OffsetExtension<double>> ==
+              effect_info(Effect::offset).parameters.size());
+static_assert(detail::field_count<InertiaExtension<double>> ==
+              effect_info(Effect::inertia).parameters.size());
+static_assert(detail::field_count<PositionExtension<double>> ==
+              effect_info(Effect::position_dependence).parameters.size());
+static_assert(detail::field_count<DriftExtension<double>> ==
+              effect_info(Effect::drift).parameters.size());
+static_assert(detail::field_count<DelayExtension<double>> ==
+              effect_info(Effect::delay).parameters.size());
+static_assert(detail::field_count<NormalLoadExtension<double>> ==
+              effect_info(Effect::normal_load).parameters.size());
 
 /// The enabled extension pieces and their parameters.
 template <typename T>
@@ -245,6 +234,15 @@ struct ExtensionParameters {
   template <class F>
   void for_each_parameter(F&& f) const {
     for_each_parameter_impl(*this, f);
+  }
+
+  /// Sets the parameters of effect e's (enabled) piece from `values`, in the order of the effect
+  /// table; values beyond the piece's parameters are ignored.
+  void assign(Effect e, std::span<const T> values) {
+    std::size_t i = 0;
+    for_each_parameter([&](Effect pe, std::string_view, T& v) {
+      if (pe == e && i < values.size()) v = values[i++];
+    });
   }
 
   /// Number of parameters of the enabled pieces.
@@ -313,67 +311,17 @@ struct ExtensionParameters {
   }
 
  private:
-  template <class Self, class F>
-  static void visit_piece(Self& self, Effect e, F&& f) {
-    switch (e) {
-      case Effect::viscous:
-        f(self.viscous);
-        break;
-      case Effect::stribeck:
-        f(self.stribeck);
-        break;
-      case Effect::frictional_lag:
-        f(self.frictional_lag);
-        break;
-      case Effect::asymmetry:
-        f(self.asymmetry);
-        break;
-      case Effect::offset:
-        f(self.offset);
-        break;
-      case Effect::inertia:
-        f(self.inertia);
-        break;
-      case Effect::position_dependence:
-        f(self.position_dependence);
-        break;
-      case Effect::drift:
-        f(self.drift);
-        break;
-      case Effect::delay:
-        f(self.delay);
-        break;
-      case Effect::normal_load:
-        f(self.normal_load);
-        break;
-    }
-  }
-
+  // Every parameter of every enabled piece, named by the effect table (the members of a piece are
+  // listed by its fields(), in the table's order).
   template <class Self, class F>
   static void for_each_parameter_impl(Self& s, F& f) {
-    if (s.viscous) f(Effect::viscous, std::string_view("viscous"), s.viscous->viscous);
-    if (s.stribeck) {
-      f(Effect::stribeck, std::string_view("static"), s.stribeck->static_force);
-      f(Effect::stribeck, std::string_view("stribeck_velocity"), s.stribeck->stribeck_velocity);
-      f(Effect::stribeck, std::string_view("stribeck_exponent"), s.stribeck->stribeck_exponent);
-    }
-    if (s.frictional_lag)
-      f(Effect::frictional_lag, std::string_view("lag_time"), s.frictional_lag->lag_time);
-    if (s.asymmetry) f(Effect::asymmetry, std::string_view("asymmetry"), s.asymmetry->asymmetry);
-    if (s.offset) f(Effect::offset, std::string_view("offset"), s.offset->offset);
-    if (s.inertia) f(Effect::inertia, std::string_view("mass"), s.inertia->mass);
-    if (s.position_dependence) {
-      f(Effect::position_dependence, std::string_view("amplitude"),
-        s.position_dependence->amplitude);
-      f(Effect::position_dependence, std::string_view("wavelength"),
-        s.position_dependence->wavelength);
-      f(Effect::position_dependence, std::string_view("phase"), s.position_dependence->phase);
-    }
-    if (s.drift) f(Effect::drift, std::string_view("relative_rate"), s.drift->relative_rate);
-    if (s.delay) f(Effect::delay, std::string_view("delay"), s.delay->delay);
-    if (s.normal_load)
-      f(Effect::normal_load, std::string_view("friction_coefficient"),
-        s.normal_load->friction_coefficient);
+    for (Effect e : kAllEffects)
+      visit_piece(s, e, [&](auto& piece) {
+        if (!piece) return;
+        const auto names = effect_info(e).parameters;
+        std::size_t i = 0;
+        std::apply([&](auto&... member) { (f(e, names[i++].name, member), ...); }, piece->fields());
+      });
   }
 };
 

@@ -1,0 +1,242 @@
+// The candidate stages of diagnose (diagnose.hpp, sections 3 and 4): a candidate's fit on top of
+// the current model, the acceptance rule as a Verdict, the greedy forward pass and the backward
+// pass.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "diagnose_stages.hpp"
+#include "friction/identification.hpp"
+
+namespace friction::diagnose_detail {
+
+namespace {
+
+double bic(double rss, std::size_t n, std::size_t p) {
+  return bayesian_information_criterion(rss, n, p);
+}
+
+// 99.9 % quantile of chi-square with p degrees of freedom: what p parameters fitted to white
+// noise of unit variance buy, with a margin for the tail.
+double chi2_999(std::size_t p) {
+  static const double table[] = {10.83, 13.82, 16.27, 18.47, 20.52, 22.46, 24.32, 26.12};
+  if (p == 0) return 0.0;
+  if (p <= 8) return table[p - 1];
+  return 26.12 + 1.8 * static_cast<double>(p - 8);
+}
+
+double percent(const std::vector<double>& force, double rss) {
+  double s = 0;
+  for (double f : force) s += f * f;
+  return 100.0 * rss / s;
+}
+
+std::size_t extra_parameters(const ExtensionParameters<double>& with,
+                             const ExtensionParameters<double>& without) {
+  return with.parameter_count() - without.parameter_count();
+}
+
+// What one more operator would drop the RSS by at a model with estimation RSS rss0: the
+// baseline's figure scaled by the share of the baseline's misfit (RSS above the noise floor) that
+// is left (section 4; unscaled, the baseline's figure turned down a real viscous term after a
+// normal-load piece had removed 99 % of the misfit, test_diagnose_pairs).
+double operator_reference(const Context& c, double rss0) {
+  if (!c.options.operator_reference || !(c.baseline_excess > 0.0)) return 0.0;
+  return c.operator_drop * std::min(1.0, std::max(rss0 - c.floor_rss, 0.0) / c.baseline_excess);
+}
+
+// One candidate fitted on top of `s` from the start its evidence gives; validated only when
+// rules (a) and (b) pass.
+Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEvidence& ev) {
+  const ExtensionParameters<double> start = extension_start(e, s.ext, ev, c.est, c.f0ref);
+  Tried t;
+  t.fit.effect = e;
+  const auto t_start = std::chrono::steady_clock::now();
+  try {
+    t.result = fit_extended_slip(c.est, s.base, s.rho, start, false, c.options.max_iterations);
+  } catch (const std::exception& ex) {
+    t.fit.verdict.fitted = false;
+    t.fit.verdict.failure = ex.what();
+    return t;
+  }
+  if (!t.result.ok) {
+    t.fit.verdict.fitted = false;
+    return t;
+  }
+  t.fit.extensions = t.result.ext;
+  t.fit.base = t.result.base;
+  t.fit.extra_parameters = extra_parameters(start, s.ext);
+  t.fit.estimation_rss = t.result.rss;
+  t.fit.estimation_percent = percent(c.est.force, t.result.rss);
+  // The validation record is only consulted (rule c) when rules a and b pass.
+  t.fit.validation_percent = std::numeric_limits<double>::quiet_NaN();
+  if (accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation, s.validation - 1.0)
+          .passes_estimation_rules())
+    t.fit.validation_percent = extended_validation_percent(t.result.base, t.result.ext, c.val);
+  t.fit.verdict = accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation,
+                         t.fit.validation_percent);
+  t.fit.earns_place = t.fit.verdict.earns_place();
+  t.fit.delta_bic = t.fit.verdict.delta_bic;
+  t.fit.required_drop = t.fit.verdict.required;
+  t.fit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return t;
+}
+
+// Nested candidates (diagnose.hpp): a velocity lag that ends at (almost) no lag is its velocity
+// piece, and a lag fitted with its own companion must beat the companion alone (BIC).
+void check_nested(const Context& c, const State& s, std::vector<Tried>& round) {
+  const double ts = (c.est.time.back() - c.est.time.front()) / static_cast<double>(c.n - 1);
+  for (auto& t : round) {
+    const EffectInfo& info = effect_info(t.fit.effect);
+    if (info.kind != EffectKind::velocity_lag || !t.fit.earns_place) continue;
+    const Tried* companion = nullptr;
+    for (const auto& u : round)
+      if (info.reported_with && u.fit.effect == *info.reported_with && u.result.ok) companion = &u;
+    if (t.result.ext.frictional_lag->lag_time < ts) {
+      t.fit.earns_place = false;
+      t.fit.verdict.nested = Verdict::Nested::lag_below_one_sample;
+    } else if (companion && !s.ext.has(companion->fit.effect) &&
+               bic(t.fit.estimation_rss, c.n, t.fit.extra_parameters) >=
+                   bic(companion->fit.estimation_rss, c.n, companion->fit.extra_parameters)) {
+      t.fit.earns_place = false;
+      t.fit.verdict.nested = Verdict::Nested::no_better_than_viscous;
+    }
+  }
+}
+
+// The state after accepting `t` on top of `s`.
+State accepted(const State& s, const Tried& t) {
+  State next;
+  next.base = t.result.base;
+  next.rho = t.result.rho;
+  next.ext = t.result.ext;
+  next.rss = t.fit.estimation_rss;
+  next.validation = t.fit.validation_percent;
+  next.order = s.order;
+  next.order.push_back(t.fit.effect);
+  return next;
+}
+
+// The pieces of `full` without effect e (and without a companion that came with it only).
+ExtensionParameters<double> without_piece(const State& full, Effect e) {
+  ExtensionParameters<double> without = full.ext;
+  without.disable(e);
+  const auto companion = effect_info(e).reported_with;
+  if (companion && std::find(full.order.begin(), full.order.end(), *companion) == full.order.end())
+    without.disable(*companion);
+  return without;
+}
+
+// The chain recomputed for the pieces of `full`, in its order, from the baseline `first`.
+std::vector<State> rebuild_chain(const Context& c, const State& first, const State& full) {
+  std::vector<State> states{first};
+  for (std::size_t i = 0; i < full.order.size(); ++i) {
+    ExtensionParameters<double> sub = full.ext;
+    for (Effect e : kAllEffects) {
+      bool keep = false;
+      for (std::size_t j = 0; j <= i; ++j)
+        keep = keep || full.order[j] == e || effect_info(full.order[j]).reported_with == e;
+      if (!keep) sub.disable(e);
+    }
+    const bool last = i + 1 == full.order.size();
+    const ExtendedSlipFit f =
+        last ? ExtendedSlipFit{full.base, full.rho, full.ext, full.rss, true}
+             : fit_extended_slip(c.est, full.base, full.rho, sub, false, c.options.max_iterations);
+    State st;
+    st.base = f.base;
+    st.rho = f.rho;
+    st.ext = f.ext;
+    st.rss = f.rss;
+    st.validation = last ? full.validation : extended_validation_percent(f.base, f.ext, c.val);
+    st.order.assign(full.order.begin(), full.order.begin() + static_cast<std::ptrdiff_t>(i + 1));
+    states.push_back(st);
+  }
+  return states;
+}
+
+}  // namespace
+
+Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double val0,
+               double val1) {
+  const DiagnoseOptions& o = c.options;
+  const double noise = chi2_999(p) * c.sigma * c.sigma;
+  const double share = o.min_excess_share * std::max(rss0 - c.floor_rss, 0.0);
+  const double reference = operator_reference(c, rss0);
+  Verdict v;
+  v.delta_bic = bic(rss1, c.n, p) - bic(rss0, c.n, 0);
+  v.required = std::max({noise, share, reference});
+  v.drop = rss0 - rss1;
+  v.operator_limited =
+      reference > 0.0 && v.required == reference && v.drop > std::max(noise, share);
+  v.validation_before = val0;
+  v.validation_after = val1;
+  v.validation = std::isnan(val1) ? Verdict::Validation::not_evaluated
+                 : val1 < val0    ? Verdict::Validation::falls
+                                  : Verdict::Validation::does_not_fall;
+  return v;
+}
+
+std::vector<Tried> fit_candidates(const Context& c, const State& s,
+                                  const std::vector<Effect>& pool) {
+  const ResidualEvidence ev = gather_evidence(s.base, s.ext, c.est, s.rho);
+  std::vector<Tried> out;
+  for (Effect e : pool)
+    if (!s.ext.has(e)) out.push_back(fit_candidate(c, s, e, ev));
+  check_nested(c, s, out);
+  return out;
+}
+
+Chain forward_pass(const Context& c, const State& start, const std::vector<Effect>& pool,
+                   std::vector<CandidateFit>& first_round) {
+  Chain chain;
+  chain.states.push_back(start);
+  for (std::size_t round = 0; round < c.options.max_findings; ++round) {
+    std::vector<Tried> tried = fit_candidates(c, chain.states.back(), pool);
+    if (round == 0)
+      for (const auto& t : tried) first_round.push_back(t.fit);
+    // Among those that earn their place, the largest gain (the lowest validation error).
+    const Tried* best = nullptr;
+    for (const auto& t : tried)
+      if (t.fit.earns_place && (!best || t.fit.validation_percent < best->fit.validation_percent))
+        best = &t;
+    if (!best) break;
+    chain.states.push_back(accepted(chain.states.back(), *best));
+    chain.rounds.push_back(std::move(tried));
+  }
+  return chain;
+}
+
+Chain backward_pass(const Context& c, Chain chain) {
+  if (!c.options.backward_pass || chain.states.back().order.size() < 2) return chain;
+  State full = chain.states.back();
+  for (std::size_t i = 0; i < full.order.size();) {
+    const Effect e = full.order[i];
+    const ExtensionParameters<double> without = without_piece(full, e);
+    const ExtendedSlipFit f =
+        fit_extended_slip(c.est, full.base, full.rho, without, false, c.options.max_iterations);
+    const double v_without = extended_validation_percent(f.base, f.ext, c.val);
+    if (f.ok) {
+      const Verdict v = accept(c, f.rss, full.rss, extra_parameters(full.ext, without), v_without,
+                               full.validation);
+      if (!v.earns_place()) {
+        chain.warnings.push_back("backward pass removed " + std::string(effect_name(e)) + ": " +
+                                 v.to_text());
+        full.base = f.base;
+        full.rho = f.rho;
+        full.ext = f.ext;
+        full.rss = f.rss;
+        full.validation = v_without;
+        full.order.erase(full.order.begin() + static_cast<std::ptrdiff_t>(i));
+        chain.removed = true;
+        i = 0;
+        continue;
+      }
+    }
+    ++i;
+  }
+  if (chain.removed) chain.states = rebuild_chain(c, chain.states.front(), full);
+  return chain;
+}
+
+}  // namespace friction::diagnose_detail

@@ -1,0 +1,356 @@
+// The report stage of diagnose (diagnose.hpp, sections 5 and 6) and the edge where its typed
+// results become text and JSON: findings with their evidence, ambiguity and standard errors, the
+// warnings on strong but rejected candidates, the final model with its pieces.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "diagnose_stages.hpp"
+#include "friction/extension_identification.hpp"
+#include "friction/identification.hpp"
+
+namespace friction {
+
+namespace {
+
+std::string fmt(double v, int precision = 3) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+  return buf;
+}
+
+double percent(const std::vector<double>& force, double rss) {
+  double s = 0;
+  for (double f : force) s += f * f;
+  return 100.0 * rss / s;
+}
+
+}  // namespace
+
+namespace diagnose_detail {
+
+namespace {
+
+// Ambiguity with the partner of methods.md 7, from the round that accepted the finding: the two
+// fits' 2 ln(likelihood ratio) for Gaussian errors, without the parameter penalty of BIC (the
+// question is whether the record can tell the causes apart, not which one is simpler: a position
+// term has two parameters more than a mass and fits a one-frequency record as well, which a BIC
+// gap would hide behind 2 ln N).
+void judge_ambiguity(const Context& c, const std::vector<Tried>* round, const State& after,
+                     double speed_span, Finding& f) {
+  const Effect e = *f.effect;
+  const EffectInfo& info = effect_info(e);
+  if (round && info.partner) {
+    for (const auto& t : *round) {
+      if (t.fit.effect != *info.partner || !t.result.ok) continue;
+      const double gap = static_cast<double>(c.n) * std::log(t.fit.estimation_rss / after.rss);
+      f.partner = PartnerEvidence{*info.partner, t.fit.earns_place, gap};
+      if (t.fit.earns_place && std::abs(gap) < c.options.ambiguity_evidence)
+        f.ambiguous_with.push_back({*info.partner});
+    }
+  }
+  // A velocity piece on a record sliding at one speed: a higher Coulomb level does the same.
+  if (info.ambiguous_with_coulomb_level && speed_span > 0 && speed_span < 1.5)
+    f.ambiguous_with.push_back({std::nullopt});
+}
+
+// The finding of step i of the chain (states[i - 1] -> states[i]).
+Finding make_finding(const Context& c, const Chain& chain, std::size_t i, double speed_span) {
+  const State& before = chain.states[i - 1];
+  const State& after = chain.states[i];
+  const Effect e = after.order.back();
+  Finding f;
+  f.effect = e;
+  // Its parameters with standard errors from the joint fit of this step (section 6).
+  const ExtendedSlipReport rep = report_extended_slip(c.est, fit_of(after));
+  const auto with = effect_info(e).reported_with;
+  for (const auto& est : rep.pieces)
+    if (est.effect == e) f.parameters.push_back(est);
+  for (const auto& est : rep.pieces)
+    if (with && est.effect == *with) f.parameters.push_back(est);
+  f.validation_before = before.validation;
+  f.validation_after = after.validation;
+  f.estimation_before = percent(c.est.force, before.rss);
+  f.estimation_after = percent(c.est.force, after.rss);
+  f.delta_bic = bayesian_information_criterion(
+                    after.rss, c.n, after.ext.parameter_count() - before.ext.parameter_count()) -
+                bayesian_information_criterion(before.rss, c.n, 0);
+  f.noise_floor_rss = c.floor_rss;
+  // Evidence on the validation record, from the model before this finding.
+  const std::vector<double> rho_v =
+      estimate_relative_deflections(before.base, before.ext, c.val, nullptr);
+  f.residual = gather_evidence(before.base, before.ext, c.val, rho_v);
+  for (const auto& w : f.residual->effects)
+    if (w.effect == e) f.signature_explained = w.explained;
+  const bool same_rounds = !chain.removed && i - 1 < chain.rounds.size();
+  judge_ambiguity(c, same_rounds ? &chain.rounds[i - 1] : nullptr, after, speed_span, f);
+  return f;
+}
+
+// Strong estimation evidence that rule (b) turned down.  A candidate whose BIC falls by more
+// than 10 ("very strong", Kass & Raftery) but whose drop is below the share rule (b) asks is
+// not accepted, yet the user should hear of it: on the tribometer halves normal-load lowered
+// BIC by 1248 but its drop was too small because the estimation half holds the load constant,
+// and the validation half's unloaded end is where the baseline fails most.  Its validation
+// error alone on the baseline is computed for the report (never for the acceptance).
+void warn_of_strong_rejected(const Context& c, const State& last, Diagnosis& dx) {
+  for (auto& cand : dx.first_round) {
+    if (cand.earns_place || !(cand.delta_bic < -10.0) || !std::isnan(cand.validation_percent) ||
+        !cand.verdict.fitted || cand.verdict.drop_exceeds() ||
+        std::find(last.order.begin(), last.order.end(), cand.effect) != last.order.end())
+      continue;
+    cand.validation_percent = extended_validation_percent(cand.base, cand.extensions, c.val);
+    if (cand.verdict.validation == Verdict::Validation::not_evaluated)
+      cand.verdict.validation = Verdict::Validation::computed_for_report;
+    std::ostringstream w;
+    w << effect_name(cand.effect) << ": the estimation record supports it (BIC falls by "
+      << fmt(-cand.delta_bic) << ") but its drop there is below what rule (b) asks, so it was not "
+      << "accepted; alone on the baseline it gives a validation RSS/SSS of "
+      << fmt(cand.validation_percent, 4) << " % against " << fmt(dx.baseline_validation_percent, 4)
+      << " %. An estimation record in which it acts more ("
+      << effect_info(cand.effect).would_establish << ") would decide; `identify --extension "
+      << effect_name(cand.effect) << "` fits it on request.";
+    dx.warnings.push_back(w.str());
+  }
+}
+
+}  // namespace
+
+ExtendedSlipFit fit_of(const State& s) {
+  return {s.base, s.rho, s.ext, s.rss, true};
+}
+
+void report(const Context& c, const Chain& chain, Diagnosis& dx) {
+  const double speed_span =
+      dx.baseline_evidence.sliding_speed_min > 0
+          ? dx.baseline_evidence.sliding_speed_max / dx.baseline_evidence.sliding_speed_min
+          : 0.0;
+  for (std::size_t i = 1; i < chain.states.size(); ++i)
+    dx.findings.push_back(make_finding(c, chain, i, speed_span));
+  const State& last = chain.states.back();
+  warn_of_strong_rejected(c, last, dx);
+  dx.final_model = AnyModel(Extended<MaxwellSlip<double>>(
+      MaxwellSlip<double>(last.base), to_own_reference(last.ext, last.base.sliding_force())));
+  dx.final_validation_percent = last.validation;
+  dx.final_estimation_percent = percent(c.est.force, last.rss);
+  if (!last.ext.empty()) dx.final_pieces = report_extended_slip(c.est, fit_of(last)).pieces;
+}
+
+}  // namespace diagnose_detail
+
+// -----------------------------------------------------------------------------------------------
+// The edge: text and JSON.
+
+std::string Verdict::to_text() const {
+  if (!fitted) return failure.empty() ? "fit failed" : "fit failed: " + failure;
+  if (nested == Nested::lag_below_one_sample)
+    return "lag_time fitted below one sample: no lag (the velocity piece covers it)";
+  if (nested == Nested::no_better_than_viscous)
+    return "no better than the viscous piece alone (BIC)";
+  std::ostringstream s;
+  if (!bic_falls()) s << "BIC does not fall (" << fmt(delta_bic) << "); ";
+  if (!drop_exceeds()) {
+    s << "estimation drop " << fmt(drop) << " N^2 below the required " << fmt(required) << " N^2";
+    if (operator_limited)
+      s << " (what one more operator buys: the baseline may be short of operators)";
+    s << "; ";
+  }
+  switch (validation) {
+    case Validation::not_evaluated:
+      s << "(validation not evaluated)";
+      break;
+    case Validation::computed_for_report:
+      s << "(validation computed for the report only)";
+      break;
+    case Validation::does_not_fall:
+      s << "validation error does not fall (" << fmt(validation_before) << " -> "
+        << fmt(validation_after) << " %); ";
+      break;
+    case Validation::falls:
+      break;
+  }
+  if (earns_place()) s << "earns its place";
+  return s.str();
+}
+
+std::string Alternative::name() const {
+  return effect ? std::string(effect_name(*effect)) : std::string(kCoulombLevelAlternative);
+}
+
+std::string Finding::name() const {
+  return effect ? std::string(effect_name(*effect)) : std::string("nonlocal-memory");
+}
+
+bool Finding::has_parameter(std::string_view n) const {
+  if (!effect) return n == "elements";
+  return std::any_of(parameters.begin(), parameters.end(),
+                     [&](const ExtensionEstimate& p) { return p.name == n; });
+}
+
+double Finding::parameter(std::string_view n) const {
+  if (!effect && n == "elements") return static_cast<double>(elements);
+  for (const auto& p : parameters)
+    if (p.name == n) return p.value;
+  throw InvalidParameter("finding " + name() + " has no parameter " + std::string(n));
+}
+
+std::vector<std::string> Finding::ambiguous_with_names() const {
+  std::vector<std::string> out;
+  for (const auto& a : ambiguous_with) out.push_back(a.name());
+  return out;
+}
+
+std::string Finding::extension() const {
+  return effect ? std::string(effect_info(*effect).extension)
+                : std::string("Maxwell Slip elements (NLR) replace the single LuGre state");
+}
+
+std::string Finding::separating_excitation() const {
+  if (ambiguous_with.empty() || !effect) return "";
+  return std::string(effect_info(*effect).separating_excitation);
+}
+
+std::string Finding::sentence() const {
+  std::ostringstream s;
+  if (!effect) {
+    s << "The LuGre simulation misses the presliding hysteresis with nonlocal memory; " << elements
+      << " Maxwell Slip elements take validation error from " << fmt(validation_before) << " % to "
+      << fmt(validation_after) << " %.";
+    return s.str();
+  }
+  const ResidualEvidence& ev = *residual;
+  const char* regime = ev.sliding_rms > 1.5 * ev.presliding_rms   ? "while sliding"
+                       : ev.presliding_rms > 1.5 * ev.sliding_rms ? "in presliding"
+                                                                  : "in both regimes";
+  s << "The simulation is off by " << fmt(std::max(ev.sliding_rms, ev.presliding_rms)) << " N RMS "
+    << regime;
+  if (ev.sliding_samples)
+    s << " (sliding speeds " << fmt(ev.sliding_speed_min) << "-" << fmt(ev.sliding_speed_max)
+      << " m/s)";
+  s << "; cause: " << name() << "; extension: " << extension() << " with";
+  std::vector<const ExtensionEstimate*> by_name;
+  for (const auto& p : parameters) by_name.push_back(&p);
+  std::stable_sort(by_name.begin(), by_name.end(),
+                   [](const auto* a, const auto* b) { return a->name < b->name; });
+  for (const auto* p : by_name)
+    s << " " << p->name << " = " << fmt(p->value, 4) << " " << parameter_unit(p->name);
+  s << "; validation RSS/SSS " << fmt(validation_before) << " % -> " << fmt(validation_after)
+    << " % (gain x" << fmt(validation_after > 0 ? validation_before / validation_after : 0.0)
+    << ")";
+  if (!ambiguous_with.empty())
+    s << "; ambiguous with " << ambiguous_with.front().name()
+      << ", to separate: " << separating_excitation();
+  s << ".";
+  return s.str();
+}
+
+Json Finding::to_json() const {
+  Json evidence, params = Json::object(), errors = Json::object(), intervals = Json::object();
+  if (!effect) {
+    evidence = {{"estimation_before", estimation_before},
+                {"estimation_after", estimation_after},
+                {"delta_bic", delta_bic}};
+    params = {{"elements", elements}};
+    errors["elements"] = nullptr;
+    intervals["elements"] = nullptr;
+  } else {
+    evidence = {{"validation_residual", residual->to_json()},
+                {"signature_explained", signature_explained},
+                {"estimation_before", estimation_before},
+                {"estimation_after", estimation_after},
+                {"delta_bic", delta_bic},
+                {"noise_floor_rss", noise_floor_rss}};
+    if (partner)
+      evidence["partner"] = {{"effect", std::string(effect_name(partner->effect))},
+                             {"earns_place", partner->earns_place},
+                             {"log_likelihood_ratio", partner->log_likelihood_ratio}};
+    for (const auto& p : parameters) {
+      params[p.name] = p.value;
+      errors[p.name] = p.available ? Json(p.standard_error) : Json(nullptr);
+      intervals[p.name] = p.available ? Json::array({p.lower95, p.upper95}) : Json(nullptr);
+    }
+  }
+  Json x = {{"effect", name()},
+            {"evidence", evidence},
+            {"extension", extension()},
+            {"parameters", params},
+            {"standard_errors", errors},
+            {"intervals", intervals},
+            {"validation_before", validation_before},
+            {"validation_after", validation_after},
+            {"gain", validation_after > 0 ? validation_before / validation_after : 0.0},
+            {"sentence", sentence()}};
+  if (!ambiguous_with.empty()) {
+    x["ambiguous_with"] = ambiguous_with_names();
+    x["separating_excitation"] = separating_excitation();
+  }
+  return x;
+}
+
+Json Diagnosis::to_json() const {
+  Json j;
+  j["baseline"] = {
+      {"model", baseline_model ? baseline_model->to_json() : Json()},
+      {"validation",
+       {{"rss_sss_percent", baseline_validation_percent}, {"initial_state", "estimated"}}},
+      {"estimation", {{"rss_sss_percent", baseline_estimation_percent}}},
+      {"one_more_operator_rss_drop", operator_drop},
+      {"residual", baseline_evidence.to_json()}};
+  Json fs = Json::array();
+  for (const auto& f : findings) fs.push_back(f.to_json());
+  j["findings"] = fs;
+  Json cands = Json::array();
+  for (const auto& c : first_round)
+    cands.push_back({{"effect", c.nonlocal_memory ? std::string("nonlocal-memory")
+                                                  : std::string(effect_name(c.effect))},
+                     {"estimation_rss_sss_percent", c.estimation_percent},
+                     {"validation_rss_sss_percent",
+                      std::isnan(c.validation_percent) ? Json() : Json(c.validation_percent)},
+                     {"delta_bic", c.delta_bic},
+                     {"extra_parameters", c.extra_parameters},
+                     {"earns_place", c.earns_place},
+                     {"seconds", c.seconds},
+                     {"verdict", c.verdict.to_text()}});
+  j["candidates"] = cands;
+  j["final"] = {{"model", final_model ? final_model->to_json() : Json()},
+                {"validation",
+                 {{"rss_sss_percent", final_validation_percent}, {"initial_state", "estimated"}}},
+                {"estimation", {{"rss_sss_percent", final_estimation_percent}}},
+                {"pieces", pieces_to_json(final_pieces)}};
+  j["seconds"] = seconds;
+  return j;
+}
+
+std::string Diagnosis::to_table() const {
+  std::ostringstream s;
+  s << "Baseline " << (baseline_model ? baseline_model->type() : std::string("?"))
+    << ": validation RSS/SSS " << fmt(baseline_validation_percent, 4) << " % (estimation "
+    << fmt(baseline_estimation_percent, 4) << " %, noise floor "
+    << fmt(baseline_evidence.noise_floor_percent, 3) << " %)\n";
+  if (findings.empty())
+    s << "No finding: no candidate extension earned its place (the baseline explains the data "
+         "as far as this record can tell).\n";
+  for (std::size_t i = 0; i < findings.size(); ++i)
+    s << (i + 1) << ". " << findings[i].sentence() << "\n";
+  s << "(" << fmt(seconds, 3) << " s, of which baseline " << fmt(baseline_seconds, 3) << " s)\n";
+  s << "Final model: validation RSS/SSS " << fmt(final_validation_percent, 4) << " %";
+  if (final_validation_percent > 0)
+    s << " (gain x" << fmt(baseline_validation_percent / final_validation_percent) << ")";
+  s << "\n";
+  if (!first_round.empty()) {
+    s << "Candidates of the first round (estimation %, validation %, delta BIC, verdict):\n";
+    for (const auto& c : first_round) {
+      char line[400];
+      std::snprintf(
+          line, sizeof line, "  %-20s %10.4g %10.4g %10.4g %6.2fs  %s\n",
+          c.nonlocal_memory ? "nonlocal-memory" : std::string(effect_name(c.effect)).c_str(),
+          c.estimation_percent, c.validation_percent, c.delta_bic, c.seconds,
+          c.verdict.to_text().c_str());
+      s << line;
+    }
+  }
+  return s.str();
+}
+
+}  // namespace friction

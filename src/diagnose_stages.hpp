@@ -1,0 +1,121 @@
+// The stages of diagnose() (diagnose.hpp), private to the library, over typed data:
+//
+//   fit_baseline      the NLR baseline and what one more operator buys (rule b)
+//   diagnose_baseline.cpp fit_lugre_baseline  a LuGre baseline and its one candidate,
+//   nonlocal-memory   diagnose_baseline.cpp gather_evidence   the residual of a model on a record
+//   residual_evidence.cpp fit_candidates    every remaining candidate on top of the current model
+//   diagnose_candidates.cpp accept            the acceptance rule of section 4, as a Verdict
+//   diagnose_candidates.cpp forward_pass      greedy rounds diagnose_candidates.cpp backward_pass
+//   removal of pieces that no longer earn their place           diagnose_candidates.cpp report
+//   findings, warnings and the final model                      diagnose_report.cpp
+//
+// No stage shares mutable state with another: each takes its inputs by const reference (the
+// records, the options and the immutable Context) and returns a value.  The candidates of a round
+// are independent fits (fit_candidate), which is what lets them run concurrently; the optimisers
+// hold no global state that one candidate could change for another (Ceres runs single-threaded per
+// fit, the residual buffers are per thread, and the only random numbers are NLopt's, seeded by each
+// global stage itself right before it runs: nlopt_seed.hpp).
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "friction/diagnose.hpp"
+#include "friction/extension_fit.hpp"
+#include "friction/methods.hpp"
+
+namespace friction::diagnose_detail {
+
+/// One model of the chain: the Maxwell Slip base, its relative initial deflections, its pieces
+/// (reference_force = F0 of the baseline), its estimation RSS and validation error.
+struct State {
+  MaxwellSlipParameters<double> base;
+  std::vector<double> rho;
+  ExtensionParameters<double> ext;
+  double rss = 0;
+  double validation = 0;      ///< RSS/SSS %
+  std::vector<Effect> order;  ///< accepted pieces, in order
+};
+
+/// What every stage after the baseline reads and none changes.
+struct Context {
+  const Record& est;
+  const Record& val;
+  const DiagnoseOptions& options;
+  std::size_t n = 0;           ///< estimation samples
+  double sigma = 0;            ///< white-noise estimate of the estimation force [N]
+  double floor_rss = 0;        ///< N sigma^2 [N^2]
+  double f0ref = 0;            ///< F0 of the baseline: the level pieces' reference force [N]
+  double operator_drop = 0;    ///< what one more operator drops the baseline's RSS by [N^2]
+  double baseline_excess = 0;  ///< the baseline's RSS above the noise floor [N^2]
+};
+
+// ---- baseline -----------------------------------------------------------------------------
+
+struct Baseline {
+  IdentifiedModel nlr;  ///< the maxwell-slip identification
+  State state;          ///< its model as the chain's first state
+  double operator_drop = 0;
+  std::vector<std::string> warnings;
+  double seconds = 0;  ///< of the NLR identification
+};
+
+/// NLR on the estimation record, its errors, and what one more operator buys (section 4, b).
+Baseline fit_baseline(const Record& est, const Record& val, const DiagnoseOptions& o);
+
+/// A LuGre baseline: LG, its validation, and its one candidate (Maxwell Slip elements, from the
+/// NLR baseline).  Fills the baseline part of `dx` and its first round; returns the finding when
+/// the candidate earns its place.
+std::optional<Finding> fit_lugre_baseline(const Context& c, const Baseline& nlr, Diagnosis& dx);
+
+// ---- evidence -----------------------------------------------------------------------------
+
+/// The residual evidence of a model of the chain on a record, from relative deflections `rho`.
+ResidualEvidence gather_evidence(const MaxwellSlipParameters<double>& base,
+                                 const ExtensionParameters<double>& ext, const Record& r,
+                                 const std::vector<double>& rho);
+
+// ---- candidates and acceptance --------------------------------------------------------------
+
+/// A candidate's record and its fit.
+struct Tried {
+  CandidateFit fit;
+  ExtendedSlipFit result;
+};
+
+/// The rule of section 4: from RSS0 to RSS1 with p extra parameters, validation val0 -> val1 (NaN:
+/// not evaluated).
+Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double val0, double val1);
+
+/// Every candidate of `pool` not yet in `s`, fitted on top of `s` (independent fits), with the
+/// nested checks applied.
+std::vector<Tried> fit_candidates(const Context& c, const State& s,
+                                  const std::vector<Effect>& pool);
+
+/// The chain of accepted models and the rounds that accepted them.
+struct Chain {
+  std::vector<State> states;               ///< baseline first
+  std::vector<std::vector<Tried>> rounds;  ///< rounds[i] accepted states[i + 1]
+  bool removed = false;                    ///< the backward pass removed a piece
+  std::vector<std::string> warnings;
+};
+
+/// Greedy rounds from `start` (section 4); the first round's candidates go to `first_round`.
+Chain forward_pass(const Context& c, const State& start, const std::vector<Effect>& pool,
+                   std::vector<CandidateFit>& first_round);
+
+/// Removes accepted pieces that no longer earn their place against the others, and recomputes
+/// the chain for what remains.
+Chain backward_pass(const Context& c, Chain chain);
+
+// ---- report ---------------------------------------------------------------------------------
+
+/// The findings of the chain, the warnings on strong but rejected candidates, and the final model
+/// with its standard errors.
+void report(const Context& c, const Chain& chain, Diagnosis& dx);
+
+/// The fit a state of the chain holds, as extension_fit.hpp reports it.
+ExtendedSlipFit fit_of(const State& s);
+
+}  // namespace friction::diagnose_detail

@@ -1,0 +1,605 @@
+// The model families an extension fit runs on (Maxwell Slip, DNLRX, LuGre bases), their cost,
+// their fit and the covariance at an optimum: the machinery of extension_identification.hpp
+// (sections 1, 2 and 4 of its header comment), private to the library.
+//
+// A family says how to build Extended<Base<T>> from two parameter blocks and set its initial
+// state: block 0 = [free base parameters (when the base is refitted), piece parameters], block 1
+// = the initial state in relative units.  Each family also gives the box of its base parameters,
+// which of them stay fixed, and their report entries.  Everything here takes its inputs by const
+// reference and returns values: fits of different candidates share nothing (the residual loop's
+// buffers are per thread, extension_fit.hpp).
+#pragma once
+
+#include <ceres/ceres.h>
+#include <ceres/dynamic_autodiff_cost_function.h>
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "friction/covariance_report.hpp"
+#include "friction/dnlrx.hpp"
+#include "friction/extension_fit.hpp"
+#include "friction/extensions.hpp"
+#include "friction/identification.hpp"
+#include "friction/lg.hpp"
+#include "friction/lugre.hpp"
+#include "friction/maxwell_slip.hpp"
+#include "friction/record.hpp"
+
+namespace friction::extension_detail {
+
+inline double sum_sq(const std::vector<double>& v) {
+  double s = 0;
+  for (double e : v) s += e * e;
+  return s;
+}
+
+inline double record_duration(const Record& r) {
+  return std::max(r.time.back() - r.time.front(), 1e-12);
+}
+
+inline double largest_speed(const Record& r) {
+  double vmax = 0;
+  for (std::size_t k = 1; k < r.size(); ++k)
+    vmax = std::max(
+        vmax, std::abs(r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]));
+  return std::max(vmax, 1e-12);
+}
+
+inline bool at_bound(double v, double bound) {
+  if (!std::isfinite(bound)) return false;
+  return v == bound || std::abs(v - bound) <= 1e-6 * std::max(std::abs(bound), std::abs(v));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Model families: how to build Extended<Base<T>> from the parameter blocks and set its initial
+// state.  Block 0 = [free base parameters (when the base is refitted), piece parameters], block 1
+// = the initial state in relative units.  Each family also gives the box of its base parameters,
+// which of them stay fixed, the base parameters of a block and their report entries.
+
+struct Box {
+  std::vector<double> lower, upper;
+};
+
+inline constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Thresholds inside [q, L] as NLR and fit_extended_slip keep them (log units), widened to hold
+// the start.
+inline void threshold_box(Box& b, const Record& r, const std::vector<double>& thresholds) {
+  const double q = displacement_resolution(r.displacement);
+  const double big = std::max(largest_travel(r.displacement), q * 1.0001);
+  for (double d : thresholds) {
+    b.lower.push_back(std::log(std::min(q, d)));
+    b.upper.push_back(std::log(std::max(big, d)));
+  }
+}
+
+struct SlipFamily {
+  MaxwellSlipParameters<double> p;
+  bool free_base = false;  // block 0 starts with log k_i, log Delta_i
+  std::size_t base_count() const { return free_base ? 2 * p.size() : 0; }
+  std::size_t state_count() const { return p.size(); }
+  std::vector<double> base_theta() const {
+    std::vector<double> t;
+    for (double k : p.stiffness) t.push_back(std::log(k));
+    for (double d : p.threshold) t.push_back(std::log(d));
+    return t;
+  }
+  Box base_box(const Record& r) const {
+    Box b;
+    b.lower.assign(p.size(), -kInf);
+    b.upper.assign(p.size(), kInf);
+    threshold_box(b, r, p.threshold);
+    return b;
+  }
+  std::vector<int> held(const std::vector<double>&) const { return {}; }
+  template <typename T>
+  Extended<MaxwellSlip<T>> make(const T* theta, ExtensionParameters<T> ext) const {
+    using std::exp;
+    const std::size_t m = p.size();
+    MaxwellSlipParameters<T> mp;
+    mp.stiffness.resize(m);
+    mp.threshold.resize(m);
+    for (std::size_t i = 0; i < m; ++i) {
+      mp.stiffness[i] = free_base ? exp(theta[i]) : T(p.stiffness[i]);
+      mp.threshold[i] = free_base ? exp(theta[m + i]) : T(p.threshold[i]);
+    }
+    return Extended<MaxwellSlip<T>>(MaxwellSlip<T>(std::move(mp)), std::move(ext), 2);
+  }
+  template <typename T>
+  void set_state(Extended<MaxwellSlip<T>>& model, const T* theta, const T* s) const {
+    using std::exp;
+    const std::size_t m = p.size();
+    std::vector<T> d(m);
+    for (std::size_t i = 0; i < m; ++i)
+      d[i] = s[i] * (free_base ? exp(theta[m + i]) : T(p.threshold[i]));
+    model.base().reset(std::span<const T>(d));
+  }
+  std::vector<double> state_bounds() const { return {-1.0, 1.0}; }
+  // Report entries of block 0's base part, fitted as log k_i, log Delta_i; the values are those of
+  // `p` (the family is built on the fitted parameters, whose logarithms are block 0).
+  std::vector<CovarianceParameter> base_parameters(const std::vector<double>&) const {
+    std::vector<CovarianceParameter> out;
+    const std::size_t m = p.size();
+    for (std::size_t i = 0; i < 2 * m; ++i) {
+      const bool stiff = i < m;
+      const std::size_t idx = stiff ? i : i - m;
+      out.push_back({(stiff ? "stiffness[" : "threshold[") + std::to_string(idx + 1) + "]",
+                     stiff ? "N/m" : "m", stiff ? p.stiffness[idx] : p.threshold[idx],
+                     Parametrisation::log});
+    }
+    return out;
+  }
+};
+
+// DNLRX: block 0's base part is [spring_filter (M (n+1)), input_filter (nx+1), log Delta (M)], the
+// order of the DNLRX report.  Coefficients the identification dropped (rank deficiency, set to 0)
+// stay 0.
+struct DnlrxFamily {
+  DnlrxParameters<double> p;
+  bool free_base = false;
+  std::size_t filter_count() const { return p.spring_filter.size() + p.input_filter.size(); }
+  std::size_t base_count() const { return free_base ? filter_count() + p.size() : 0; }
+  std::size_t state_count() const { return p.size(); }
+  std::vector<double> base_theta() const {
+    std::vector<double> t(p.spring_filter);
+    t.insert(t.end(), p.input_filter.begin(), p.input_filter.end());
+    for (double d : p.threshold) t.push_back(std::log(d));
+    return t;
+  }
+  Box base_box(const Record& r) const {
+    Box b;
+    b.lower.assign(filter_count(), -kInf);
+    b.upper.assign(filter_count(), kInf);
+    threshold_box(b, r, p.threshold);
+    return b;
+  }
+  std::vector<int> held(const std::vector<double>& theta) const {
+    std::vector<int> h;
+    for (std::size_t c = 0; c < filter_count(); ++c)
+      if (theta[c] == 0.0) h.push_back(static_cast<int>(c));
+    return h;
+  }
+  DnlrxParameters<double> parameters(const double* theta) const {
+    DnlrxParameters<double> q = p;
+    const std::size_t ns = p.spring_filter.size(), nf = filter_count();
+    for (std::size_t c = 0; c < ns; ++c) q.spring_filter[c] = theta[c];
+    for (std::size_t c = ns; c < nf; ++c) q.input_filter[c - ns] = theta[c];
+    for (std::size_t i = 0; i < p.size(); ++i) q.threshold[i] = std::exp(theta[nf + i]);
+    return q;
+  }
+  template <typename T>
+  Extended<Dnlrx<T>> make(const T* theta, ExtensionParameters<T> ext) const {
+    using std::exp;
+    DnlrxParameters<T> q;
+    q.spring_order = p.spring_order;
+    const std::size_t ns = p.spring_filter.size(), nf = filter_count();
+    // A coefficient the identification dropped (0) stays 0: its column is then zero.
+    for (std::size_t c = 0; c < ns; ++c)
+      q.spring_filter.push_back(free_base && p.spring_filter[c] != 0.0 ? theta[c]
+                                                                       : T(p.spring_filter[c]));
+    for (std::size_t c = ns; c < nf; ++c)
+      q.input_filter.push_back(
+          free_base && p.input_filter[c - ns] != 0.0 ? theta[c] : T(p.input_filter[c - ns]));
+    for (std::size_t i = 0; i < p.size(); ++i)
+      q.threshold.push_back(free_base ? exp(theta[nf + i]) : T(p.threshold[i]));
+    return Extended<Dnlrx<T>>(Dnlrx<T>(std::move(q)), std::move(ext), 2);
+  }
+  template <typename T>
+  void set_state(Extended<Dnlrx<T>>& model, const T* theta, const T* s) const {
+    using std::exp;
+    const std::size_t nf = filter_count();
+    std::vector<T> d(p.size());
+    for (std::size_t i = 0; i < p.size(); ++i)
+      d[i] = s[i] * (free_base ? exp(theta[nf + i]) : T(p.threshold[i]));
+    model.base().reset(std::span<const T>(d));
+  }
+  std::vector<double> state_bounds() const { return {-1.0, 1.0}; }
+  // Report entries of block 0's base part: the filters (N/m) and log Delta_i.
+  std::vector<CovarianceParameter> base_parameters(const std::vector<double>& th) const {
+    std::vector<CovarianceParameter> out;
+    const std::size_t taps = p.spring_taps(), ns = p.spring_filter.size();
+    for (std::size_t c = 0; c < th.size(); ++c) {
+      if (c < ns)
+        out.push_back(
+            {"spring_filter[" + std::to_string(c / taps + 1) + "," + std::to_string(c % taps) + "]",
+             "N/m", th[c]});
+      else if (c < filter_count())
+        out.push_back({"input_filter[" + std::to_string(c - ns) + "]", "N/m", th[c]});
+      else
+        out.push_back({"threshold[" + std::to_string(c - filter_count() + 1) + "]", "m",
+                       std::exp(th[c]), Parametrisation::log});
+    }
+    return out;
+  }
+};
+
+// LuGre: block 0's base part is the seven parameters in to_array order, natural units, boxed to
+// their domain (sigma1, sigma2 >= 0; the others above a thousandth of their start, mu in
+// [0.2, 10]).  A parameter the identification left at 0 (sigma1 or sigma2) stays 0.
+struct LuGreFamily {
+  LuGreParameters<double> p;
+  bool free_base = false;
+  double zref() const { return std::max(p.coulomb, p.static_force) / p.stiffness; }
+  std::size_t base_count() const { return free_base ? LuGreParameters<double>::kSize : 0; }
+  std::size_t state_count() const { return 1; }
+  std::vector<double> base_theta() const {
+    const auto a = p.to_array();
+    return std::vector<double>(a.begin(), a.end());
+  }
+  Box base_box(const Record&) const {
+    Box b;
+    const auto a = p.to_array();
+    for (std::size_t j = 0; j < a.size(); ++j) {
+      const bool nonnegative = j == 1 || j == 2;
+      b.lower.push_back(nonnegative ? 0.0 : (j == 6 ? 0.2 : 1e-3 * a[j]));
+      b.upper.push_back(j == 6 ? 10.0 : kInf);
+    }
+    return b;
+  }
+  std::vector<int> held(const std::vector<double>& theta) const {
+    std::vector<int> h;
+    for (int j : {1, 2})
+      if (theta[static_cast<std::size_t>(j)] == 0.0) h.push_back(j);
+    return h;
+  }
+  LuGreParameters<double> parameters(const double* theta) const {
+    LuGreParameters<double> q = p;
+    q.stiffness = theta[0], q.micro_damping = theta[1], q.viscous = theta[2], q.coulomb = theta[3];
+    q.static_force = theta[4], q.stribeck_velocity = theta[5], q.stribeck_exponent = theta[6];
+    return q;
+  }
+  template <typename T>
+  Extended<LuGre<T>> make(const T* theta, ExtensionParameters<T> ext) const {
+    LuGreParameters<T> q = p.template cast<T>();
+    if (free_base) {
+      // sigma1 or sigma2 left at 0 by the identification stays 0.
+      q.stiffness = theta[0];
+      q.micro_damping = p.micro_damping != 0.0 ? theta[1] : T(0);
+      q.viscous = p.viscous != 0.0 ? theta[2] : T(0);
+      q.coulomb = theta[3], q.static_force = theta[4], q.stribeck_velocity = theta[5];
+      q.stribeck_exponent = theta[6];
+    }
+    return Extended<LuGre<T>>(LuGre<T>(std::move(q)), std::move(ext), 2);
+  }
+  template <typename T>
+  void set_state(Extended<LuGre<T>>& model, const T*, const T* s) const {
+    model.base().reset(T(s[0] * zref()));
+  }
+  // estimate_lugre_initial_state scans the same range.
+  std::vector<double> state_bounds() const { return {-1.5, 1.5}; }
+  // Report entries of block 0's base part: the seven parameters in SI, fitted linearly.
+  std::vector<CovarianceParameter> base_parameters(const std::vector<double>& th) const {
+    static constexpr std::array<const char*, 7> kUnits{"N/m", "N s/m", "N s/m", "N",
+                                                       "N",   "m/s",   "1"};
+    std::vector<CovarianceParameter> out;
+    for (std::size_t j = 0; j < th.size(); ++j)
+      out.push_back({kLuGreParameterNames[j], kUnits[j], th[j]});
+    return out;
+  }
+};
+
+// Residuals (F - Fhat) * scale of the extended model's free run on the record.
+template <class Family>
+struct FamilyCost {
+  const Record* record;
+  Family family;
+  ExtensionParameters<double> pieces;  // which pieces, and the reference force
+  double scale;
+
+  template <typename T>
+  bool operator()(T const* const* p, T* residual) const {
+    ExtensionParameters<T> ext = pieces.template cast<T>([](double v) { return T(v); });
+    std::size_t j = family.base_count();
+    ext.for_each_parameter([&](Effect, std::string_view, T& v) { v = p[0][j++]; });
+    ext.reference_force = T(pieces.reference_force);
+    try {
+      auto model = family.template make<T>(p[0], std::move(ext));
+      family.template set_state<T>(model, p[0], p[1]);
+      extended_residuals(model, *record, scale, residual);
+    } catch (const InvalidParameter&) {
+      return false;
+    }
+    return true;
+  }
+};
+
+template <class Family>
+using FamilyCostFunction = ceres::DynamicAutoDiffCostFunction<FamilyCost<Family>, 16>;
+
+template <class Family>
+FamilyCostFunction<Family>* make_cost(const Record& r, const Family& family,
+                                      const ExtensionParameters<double>& pieces, double scale,
+                                      std::size_t theta_size) {
+  auto* cost = new FamilyCostFunction<Family>(new FamilyCost<Family>{&r, family, pieces, scale});
+  cost->AddParameterBlock(static_cast<int>(theta_size));
+  cost->AddParameterBlock(static_cast<int>(family.state_count()));
+  cost->SetNumResiduals(static_cast<int>(r.size()));
+  return cost;
+}
+
+// Bounds of block 0: the family's base box (when refitted) and the pieces' boxes.
+template <class Family>
+Box theta_box(const Family& family, const ExtensionParameters<double>& pieces, double f0,
+              const Record& r) {
+  Box b;
+  if (family.base_count() > 0) b = family.base_box(r);
+  const double duration = record_duration(r), vmax = largest_speed(r);
+  pieces.for_each_parameter([&](Effect e, std::string_view name, const double&) {
+    const ExtensionBounds eb = extension_parameter_bounds(e, name, f0, duration, vmax);
+    b.lower.push_back(eb.lower);
+    b.upper.push_back(eb.upper);
+  });
+  return b;
+}
+
+inline std::vector<double> piece_values(const ExtensionParameters<double>& ext) {
+  std::vector<double> v;
+  ext.for_each_parameter([&](Effect, std::string_view, const double& x) { v.push_back(x); });
+  return v;
+}
+
+inline void set_piece_values(ExtensionParameters<double>& ext, const double* v) {
+  std::size_t j = 0;
+  ext.for_each_parameter([&](Effect, std::string_view, double& x) { x = v[j++]; });
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fit of a family: the pieces and the initial state, with the base parameters too when the family
+// is refitted (base_theta0 then holds their start), or the initial state alone (fix_pieces).
+
+struct FamilyFit {
+  std::vector<double> base_theta;  // block 0's base part at the optimum (empty when held)
+  ExtensionParameters<double> ext;
+  std::vector<double> state;
+  double rss = std::numeric_limits<double>::infinity();
+  bool ok = false;
+};
+
+template <class Family>
+FamilyFit fit_family(const Record& r, const Family& family, const std::vector<double>& base_theta0,
+                     const ExtensionParameters<double>& ext0, std::vector<double> state0,
+                     bool fix_pieces, int max_iterations, double f0) {
+  const double rms = std::sqrt(sum_sq(r.force) / static_cast<double>(r.size()));
+  const double scale = rms > 0 ? 1.0 / rms : 1.0;
+  const std::size_t nb = family.base_count();
+  FRICTION_CHECK(base_theta0.size() == nb, "fit_family: ", base_theta0.size(),
+                 " base parameters for ", nb);
+  std::vector<double> theta = base_theta0;
+  const std::vector<double> pv = piece_values(ext0);
+  theta.insert(theta.end(), pv.begin(), pv.end());
+  const bool empty = theta.empty();
+  if (empty) theta.push_back(0.0);  // Ceres needs a non-empty block
+  const Box box = theta_box(family, ext0, f0, r);
+  auto* cost = make_cost(r, family, ext0, scale, theta.size());
+  ceres::Problem problem;
+  std::vector<double> state = std::move(state0);
+  state.resize(family.state_count(), 0.0);
+  const std::vector<double> sb = family.state_bounds();
+  for (double& s : state) s = std::clamp(s, sb[0], sb[1]);
+  problem.AddResidualBlock(cost, nullptr, theta.data(), state.data());
+  for (std::size_t i = 0; i < state.size(); ++i) {
+    problem.SetParameterLowerBound(state.data(), static_cast<int>(i), sb[0]);
+    problem.SetParameterUpperBound(state.data(), static_cast<int>(i), sb[1]);
+  }
+  std::vector<int> held = nb > 0 ? family.held(base_theta0) : std::vector<int>{};
+  if (!empty) {
+    for (std::size_t j = 0; j < box.lower.size(); ++j) {
+      if (std::find(held.begin(), held.end(), static_cast<int>(j)) != held.end()) continue;
+      theta[j] = std::clamp(theta[j], box.lower[j], box.upper[j]);
+      if (std::isfinite(box.lower[j]))
+        problem.SetParameterLowerBound(theta.data(), static_cast<int>(j), box.lower[j]);
+      if (std::isfinite(box.upper[j]))
+        problem.SetParameterUpperBound(theta.data(), static_cast<int>(j), box.upper[j]);
+    }
+  }
+  // Held base entries have zero derivative (the family ignores them): they do not move.
+  if (fix_pieces || empty) problem.SetParameterBlockConstant(theta.data());
+  ceres::Solver::Options options;
+  options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  options.linear_solver_type = ceres::DENSE_QR;
+  options.max_num_iterations = max_iterations;
+  options.num_threads = 1;
+  options.logging_type = ceres::SILENT;
+  options.function_tolerance = 1e-7;
+  options.parameter_tolerance = 1e-9;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  FamilyFit out;
+  out.ext = ext0;
+  if (!empty) {
+    out.base_theta.assign(theta.begin(), theta.begin() + static_cast<std::ptrdiff_t>(nb));
+    set_piece_values(out.ext, theta.data() + nb);
+  }
+  out.state = state;
+  out.ok = summary.IsSolutionUsable();
+  if (out.ok) out.rss = 2.0 * summary.final_cost / (scale * scale);
+  return out;
+}
+
+// Free-run force of a family at given pieces and state (double).
+template <class Family>
+std::vector<double> family_run(const Record& r, const Family& family,
+                               const ExtensionParameters<double>& ext, const double* theta_base,
+                               const std::vector<double>& state) {
+  auto model = family.template make<double>(theta_base, ext);
+  family.template set_state<double>(model, theta_base, state.data());
+  return simulate_extended(model, std::span<const double>(r.time),
+                           std::span<const double>(r.displacement),
+                           std::span<const double>(r.normal));
+}
+
+inline double rss_of(const Record& r, const std::vector<double>& f) {
+  double s = 0;
+  for (std::size_t k = 0; k < r.size(); ++k) s += (r.force[k] - f[k]) * (r.force[k] - f[k]);
+  return s;
+}
+
+// Initial state of a family with every parameter fixed: each start refined by Ceres (never worse
+// than the start), the best kept.  Several starts because a state at its bound (an operator that
+// saturates at once from the plain model's estimate) has no gradient to leave it by: the relaxed
+// state (0) and halfway to the plain estimate are always tried as well.
+template <class Family>
+std::vector<double> estimate_family_state(const Record& r, const Family& family,
+                                          const ExtensionParameters<double>& ext,
+                                          const std::vector<double>& plain, double f0) {
+  const std::vector<double> sb = family.state_bounds();
+  std::vector<std::vector<double>> starts{plain, std::vector<double>(plain.size(), 0.0), plain};
+  for (double& v : starts[2]) v *= 0.5;
+  std::vector<double> best;
+  double best_rss = std::numeric_limits<double>::infinity();
+  for (auto s0 : starts) {
+    for (double& s : s0) s = std::clamp(s, sb[0], sb[1]);
+    const double rss0 = rss_of(r, family_run(r, family, ext, nullptr, s0));
+    if (rss0 < best_rss) best_rss = rss0, best = s0;
+    const FamilyFit f = fit_family(r, family, {}, ext, s0, /*fix_pieces=*/true, 30, f0);
+    if (f.ok && f.rss < best_rss) best_rss = f.rss, best = f.state;
+  }
+  return best;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Covariance of the free parameters at an optimum (extension_identification.hpp, 3): the
+// Gauss-Newton cov = s^2 (J^T J)^-1, s^2 = RSS / (N - p), over the free columns of both blocks,
+// J from automatic derivatives through the family's cost.  Columns are scaled to unit norm before
+// the rank test (reciprocal condition number below 1e-12: rank deficient), which makes it a
+// property of the model, not of the units.
+
+struct FreeCovariance {
+  Eigen::MatrixXd covariance;        // over `columns`
+  std::vector<std::size_t> columns;  // free columns: 0..nt-1 block 0, nt.. block 1
+  bool rank_deficient = false;
+  bool ok = false;
+  // Position of block-0 column c in the covariance; -1 when it is not free (or not computed).
+  std::ptrdiff_t column_of(std::size_t c) const {
+    if (!ok) return -1;
+    const auto it = std::find(columns.begin(), columns.end(), c);
+    return it == columns.end() ? -1 : it - columns.begin();
+  }
+};
+
+template <class Family>
+FreeCovariance covariance_at(const Record& r, const Family& family,
+                             const ExtensionParameters<double>& pieces, std::vector<double> theta,
+                             std::vector<double> state, const std::vector<char>& free_theta,
+                             const std::vector<char>& free_state) {
+  FreeCovariance out;
+  const std::size_t n = r.size(), nt = theta.size(), ns = state.size();
+  std::unique_ptr<FamilyCostFunction<Family>> cost(make_cost(r, family, pieces, 1.0, nt));
+  std::vector<double> residual(n);
+  std::vector<double> j0(n * nt), j1(n * ns);
+  const double* params[2] = {theta.data(), state.data()};
+  double* jac[2] = {j0.data(), j1.data()};
+  if (!cost->Evaluate(params, residual.data(), jac)) return out;
+  std::vector<std::size_t>& cols = out.columns;
+  for (std::size_t c = 0; c < nt; ++c)
+    if (free_theta[c]) cols.push_back(c);
+  for (std::size_t c = 0; c < ns; ++c)
+    if (free_state[c]) cols.push_back(nt + c);
+  const std::size_t p = cols.size();
+  if (p == 0 || n <= p) return out;
+  Eigen::MatrixXd J(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(p));
+  for (std::size_t k = 0; k < n; ++k)
+    for (std::size_t q = 0; q < p; ++q) {
+      const std::size_t c = cols[q];
+      J(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(q)) =
+          c < nt ? j0[k * nt + c] : j1[k * ns + (c - nt)];
+    }
+  if (!J.allFinite()) return out;
+  Eigen::VectorXd d = J.colwise().norm().transpose();
+  for (Eigen::Index q = 0; q < d.size(); ++q)
+    if (!(d(q) > 0)) {
+      out.rank_deficient = true;
+      return out;
+    }
+  const Eigen::MatrixXd Js = J * d.cwiseInverse().asDiagonal();
+  const Eigen::MatrixXd H = Js.transpose() * Js;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(H);
+  const double emax = eig.eigenvalues().maxCoeff(), emin = eig.eigenvalues().minCoeff();
+  if (!(emin > 1e-12 * emax)) {
+    out.rank_deficient = true;
+    return out;
+  }
+  const double s2 = sum_sq(residual) / static_cast<double>(n - p);
+  const Eigen::MatrixXd Hinv = eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() *
+                               eig.eigenvectors().transpose();
+  out.covariance = s2 * d.cwiseInverse().asDiagonal() * Hinv * d.cwiseInverse().asDiagonal();
+  out.ok = true;
+  return out;
+}
+
+// The report of a joint fit: every block-0 parameter (the base's when it was refitted, then the
+// pieces) through covariance_report, in the parametrisation it was fitted in (extension pieces
+// linearly; `ratio` converts F0-relative pieces to the model's own F0, extension_fit.hpp).
+struct JointReport {
+  std::vector<ExtensionEstimate> pieces;
+  std::vector<ParameterEstimate> base;  // empty when the base was held
+  Eigen::MatrixXd correlation;          // of [base, pieces]
+  bool rank_deficient = false;
+};
+
+template <class Family>
+JointReport report_joint_fit(const Record& r, const Family& family,
+                             const std::vector<double>& base_theta,
+                             const ExtensionParameters<double>& ext,
+                             const std::vector<double>& state, const std::vector<char>& free_state,
+                             double f0, double ratio) {
+  const std::size_t nb = family.base_count();
+  std::vector<double> theta = base_theta;
+  for (double v : piece_values(ext)) theta.push_back(v);
+  const Box box = theta_box(family, ext, f0, r);
+  std::vector<char> free_theta(theta.size(), 1);
+  for (std::size_t c = 0; c < theta.size(); ++c)
+    if (at_bound(theta[c], box.lower[c]) || at_bound(theta[c], box.upper[c])) free_theta[c] = 0;
+  if (nb > 0)
+    for (int h : family.held(base_theta)) free_theta[static_cast<std::size_t>(h)] = 0;
+  const FreeCovariance cov = covariance_at(r, family, ext, theta, state, free_theta, free_state);
+
+  std::vector<CovarianceParameter> cp;
+  if (nb > 0) cp = family.base_parameters(base_theta);
+  std::vector<Effect> effects;
+  ext.for_each_parameter([&](Effect e, std::string_view name, const double& v) {
+    const double s = find_parameter(e, name)->scales_with_reference_force ? ratio : 1.0;
+    CovarianceParameter q{std::string(name), std::string(parameter_unit(name)), v * s,
+                          find_parameter(e, name)->fitted, s};
+    cp.push_back(q);
+    effects.push_back(e);
+  });
+  for (std::size_t c = 0; c < cp.size(); ++c) {
+    cp[c].column = free_theta[c] ? cov.column_of(c) : -1;
+    cp[c].at_bound = c >= nb && !free_theta[c];
+  }
+  const CovarianceReport report = covariance_report(cov.ok ? &cov.covariance : nullptr, cp);
+  JointReport out;
+  out.rank_deficient = cov.rank_deficient;
+  out.correlation = report.correlation;
+  for (std::size_t c = 0; c < cp.size(); ++c) {
+    const ParameterUncertainty& u = report.parameters[c];
+    if (c < nb) {
+      out.base.push_back(
+          {cp[c].name, cp[c].unit, cp[c].value, u.standard_error, u.lower95, u.upper95});
+      continue;
+    }
+    ExtensionEstimate est;
+    est.effect = effects[c - nb];
+    est.name = cp[c].name;
+    est.unit = cp[c].unit;
+    est.value = cp[c].value;
+    est.standard_error = u.standard_error;
+    est.at_bound = cp[c].at_bound;
+    est.lower95 = u.lower95;
+    est.upper95 = u.upper95;
+    est.available = u.available;
+    out.pieces.push_back(est);
+  }
+  return out;
+}
+
+}  // namespace friction::extension_detail

@@ -1,0 +1,163 @@
+// Pieces on a Maxwell Slip base: the base and all requested pieces refitted jointly, pieces added
+// sequentially or jointly, then the restart of NLR on the force without the pieces
+// (extension_identification.hpp, section 1).
+#include <algorithm>
+#include <cmath>
+#include <span>
+
+#include "extension_families.hpp"
+#include "extension_steps.hpp"
+#include "friction/diagnose.hpp"
+#include "friction/extension_fit.hpp"
+#include "friction/identification.hpp"
+#include "friction/nlr.hpp"
+
+namespace friction::extension_detail {
+
+namespace {
+
+// A fit of the current pieces and start from the current solution; throws when it fails.
+ExtendedSlipFit fit_step(const Record& r, const ExtendedSlipFit& cur,
+                         const ExtensionParameters<double>& start, Effect e,
+                         const ExtensionFitOptions& o) {
+  ExtendedSlipFit f = fit_extended_slip(r, cur.base, cur.rho, start, false, o.max_iterations);
+  if (!f.ok)
+    throw NumericalError("identify: the fit of the " + std::string(effect_name(e)) +
+                         " extension found no usable solution");
+  return f;
+}
+
+// The pieces added to `cur` in the requested order (header comment, 1: sequential or joint);
+// `order` receives the order in which they were added.
+ExtendedSlipFit add_pieces(const Record& r, ExtendedSlipFit cur, const std::vector<Effect>& effects,
+                           const ExtensionFitOptions& o, std::vector<Effect>& order) {
+  const double f0ref = cur.ext.reference_force;
+  if (o.order == ExtensionOrder::joint) {
+    const ResidualEvidence ev = analyse_residual(cur.base, cur.ext, r);
+    ExtensionParameters<double> start = cur.ext;
+    for (Effect e : velocity_pieces_first(effects)) {
+      if (start.has(e)) continue;
+      start = extension_start(e, start, ev, r, f0ref);
+      order.push_back(e);
+    }
+    return fit_step(r, cur, start, effects.front(), o);
+  }
+  std::vector<Effect> remaining = effects;
+  while (!remaining.empty()) {
+    // The piece whose signature explains most of the current residual first.
+    const ResidualEvidence ev = analyse_residual(cur.base, cur.ext, r);
+    auto pick = remaining.begin();
+    for (const auto& w : ev.effects) {
+      auto it = std::find(remaining.begin(), remaining.end(), w.effect);
+      if (it != remaining.end()) {
+        pick = it;
+        break;
+      }
+    }
+    const Effect e = *pick;
+    remaining.erase(pick);
+    if (cur.ext.has(e)) continue;  // a companion of an earlier piece
+    const ExtensionParameters<double> start = extension_start(e, cur.ext, ev, r, f0ref);
+    for (Effect added : kAllEffects)
+      if (start.has(added) && !cur.ext.has(added)) order.push_back(added);
+    cur = fit_step(r, cur, start, e, o);
+  }
+  return cur;
+}
+
+// The force with the fitted pieces taken out: added terms subtracted, divided by the level along
+// the fitted model's run.
+std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit& cur) {
+  const RecordSignals sig = record_signals(r);
+  Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(cur.base), cur.ext, 2);
+  model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho)));
+  std::vector<double> corrected(r.size());
+  for (std::size_t k = 0; k < r.size(); ++k) {
+    ExtendedMotion<double> c;
+    c.x = r.displacement[k];
+    c.dx = k > 0 ? r.displacement[k] - r.displacement[k - 1] : 0.0;
+    c.velocity = sig.v[k];
+    c.acceleration = sig.a[k];
+    c.dt = k > 0 ? r.time[k] - r.time[k - 1] : 0.0;
+    c.time = r.time[k] - r.time.front();
+    if (r.has_normal()) c.normal = r.normal[k], c.has_normal = true;
+    model.step_shifted(c);
+    const double vl = cur.ext.frictional_lag ? model.lagged_velocity() : sig.v[k];
+    double added = 0;
+    if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
+    if (cur.ext.offset) added += cur.ext.offset->offset;
+    if (cur.ext.inertia) added += cur.ext.inertia->mass * sig.a[k];
+    corrected[k] = (r.force[k] - added) / std::max(model.level(), 0.05);
+  }
+  return corrected;
+}
+
+// The restart (header comment, 1): NLR on the force without the pieces, the joint fit from that
+// base; the fit with the lower BIC is returned (`restarted` says which).
+ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
+                             const ExtensionFitOptions& o, bool& restarted) {
+  NlrOptions n;
+  n.operators = o.operators;
+  if (o.max_operators > 0) n.max_operators = o.max_operators;
+  n.global_stage = o.global_stage;
+  n.covariance = false;
+  try {
+    const NlrResult nr =
+        identify_maxwell_slip(r.time, r.displacement, force_without_pieces(r, cur), n);
+    const ExtendedSlipFit g = fit_extended_slip(
+        r, nr.parameters, state_from(nr.report.initial_deflections, nr.parameters.threshold),
+        cur.ext, false, o.max_iterations);
+    // M may differ (it is selected again on the corrected force): compare by BIC.
+    const std::size_t pe = cur.ext.parameter_count();
+    if (g.ok && bayesian_information_criterion(g.rss, r.size(), 2 * g.base.size() + pe) <
+                    bayesian_information_criterion(cur.rss, r.size(), 2 * cur.base.size() + pe)) {
+      restarted = true;
+      return g;
+    }
+  } catch (const Error&) {
+    // No restart: the first fit stands.
+  }
+  return cur;
+}
+
+}  // namespace
+
+void identify_on_maxwell_slip(ExtensionIdentification& res,
+                              const MaxwellSlipParameters<double>& base0, const Record& r,
+                              const std::vector<double>& base_initial, std::vector<Effect> effects,
+                              const ExtensionFitOptions& o) {
+  ExtendedSlipFit cur;
+  cur.base = base0;
+  cur.rho = state_from(base_initial, base0.threshold);
+  for (double& v : cur.rho) v = std::clamp(v, -1.0, 1.0);
+  cur.ext.reference_force = base0.sliding_force();
+  // A velocity lag without a velocity piece has no effect: it brings its companion.
+  const auto has = [&](Effect e) {
+    return std::find(effects.begin(), effects.end(), e) != effects.end();
+  };
+  if (has(Effect::frictional_lag) && !has(Effect::viscous) && !has(Effect::stribeck)) {
+    effects.push_back(*effect_info(Effect::frictional_lag).reported_with);
+    res.warnings.push_back(
+        "frictional-lag acts through a velocity-dependent piece: a viscous piece was added with "
+        "it");
+  }
+  cur = add_pieces(r, std::move(cur), effects, o, res.order);
+  if (o.restart_base) cur = restart_base(r, cur, o, res.restarted);
+  res.fit_rss_sss_percent = 100.0 * cur.rss / sum_sq(r.force);
+
+  // Standard errors and intervals of [log k, log Delta, pieces] at the optimum.
+  const ExtendedSlipReport rep = report_extended_slip(r, cur);
+  if (rep.rank_deficient)
+    res.warnings.push_back(
+        "the joint fit's covariance is rank deficient (some parameters trade off against each "
+        "other on this record): no standard errors are given");
+  res.estimates = rep.pieces;
+  res.base_parameters = rep.base;
+  res.correlation_matrix = rep.correlation;
+  const double own_f0 = cur.base.sliding_force();
+  res.model = AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(cur.base),
+                                                     to_own_reference(cur.ext, own_f0)));
+  judge_evidence(res, effects, own_f0, o.evidence_sigmas);
+}
+
+}  // namespace friction::extension_detail

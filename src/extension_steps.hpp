@@ -1,0 +1,55 @@
+// The steps of identify_extensions (extension_identification.hpp), private to the library: the
+// Maxwell Slip path with its restart (extension_identify_slip.cpp), the held LuGre / DNLRX path
+// (extension_identify_held.cpp) and what both share (extension_identification.cpp).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "friction/dnlrx.hpp"
+#include "friction/extension_identification.hpp"
+#include "friction/lugre.hpp"
+#include "friction/maxwell_slip.hpp"
+#include "friction/record.hpp"
+
+namespace friction::extension_detail {
+
+/// `v` with `precision` significant digits, for messages.
+std::string fmt(double v, int precision = 4);
+
+/// Velocity and acceleration of a record as simulate_extended computes them (no delay).
+struct RecordSignals {
+  std::vector<double> v, a;
+};
+RecordSignals record_signals(const Record& r);
+
+/// Relative initial state values_i / thresholds_i (0 where values are missing).
+std::vector<double> state_from(const std::vector<double>& values,
+                               const std::vector<double>& thresholds);
+
+/// The pieces in the order of a joint start: the velocity pieces before the lag that acts through
+/// them.
+std::vector<Effect> velocity_pieces_first(std::vector<Effect> effects);
+
+/// Warnings about the pieces: bounds and missing evidence (header comment, 3).
+void judge_evidence(ExtensionIdentification& res, const std::vector<Effect>& effects, double f0,
+                    double sigmas);
+
+/// Maxwell Slip base: the base and all pieces refitted jointly, with the restart (section 1).
+void identify_on_maxwell_slip(ExtensionIdentification& res,
+                              const MaxwellSlipParameters<double>& base0, const Record& r,
+                              const std::vector<double>& base_initial, std::vector<Effect> effects,
+                              const ExtensionFitOptions& o);
+
+/// DNLRX / LuGre bases: the pieces with the base held, then everything jointly (section 2).
+/// `base_initial` holds the base's deflections (DNLRX) or z0 (LuGre).
+void identify_on_dnlrx(ExtensionIdentification& res, const DnlrxParameters<double>& base,
+                       const Record& r, const std::vector<double>& base_simulated,
+                       const std::vector<double>& base_initial, const std::vector<Effect>& effects,
+                       const ExtensionFitOptions& o);
+void identify_on_lugre(ExtensionIdentification& res, const LuGreParameters<double>& base,
+                       const Record& r, const std::vector<double>& base_simulated,
+                       const std::vector<double>& base_initial, const std::vector<Effect>& effects,
+                       const ExtensionFitOptions& o);
+
+}  // namespace friction::extension_detail
