@@ -68,7 +68,14 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
                   floor_rss,
                   b.state.ext.reference_force,
                   b.operator_drop,
-                  std::max(b.state.rss - floor_rss, 0.0)};
+                  std::max(b.state.rss - floor_rss, 0.0),
+                  record_derivative_windows(est.time, est.displacement),
+                  profile_scales(est,
+                                 run_extended_slip(b.state.base, b.state.ext,
+                                                   deflections_from_relative(b.state.base,
+                                                                             b.state.rho),
+                                                   est),
+                                 b.state.ext.reference_force)};
 
   if (o.baseline == "lugre") {
     std::optional<Finding> nonlocal = fit_lugre_baseline(c, b, dx);

@@ -54,7 +54,9 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
   t.fit.effect = e;
   const auto t_start = std::chrono::steady_clock::now();
   try {
-    t.result = fit_extended_slip(c.est, s.base, s.rho, start, false, c.options.max_iterations);
+    // The evidence chose the candidate; the profile, not the evidence's regression, starts it.
+    const ProfiledStart p = profile_start(c.est, s.base, s.rho, start, e, c.windows, c.scales);
+    t.result = fit_extended_slip(c.est, p.base, s.rho, p.ext, false, c.options.max_iterations);
   } catch (const std::exception& ex) {
     t.fit.verdict.fitted = false;
     t.fit.verdict.failure = ex.what();

@@ -49,6 +49,8 @@ struct Context {
   double f0ref = 0;            ///< F0 of the baseline: the level pieces' reference force [N]
   double operator_drop = 0;    ///< what one more operator drops the baseline's RSS by [N^2]
   double baseline_excess = 0;  ///< the baseline's RSS above the noise floor [N^2]
+  DerivativeWindows windows;   ///< the estimation record's (sample_derivatives.hpp)
+  ProfileScales scales;        ///< the estimation record's, for the profiled starts
 };
 
 // ---- baseline -----------------------------------------------------------------------------

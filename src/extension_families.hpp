@@ -293,6 +293,7 @@ struct FamilyCost {
   Family family;
   ExtensionParameters<double> pieces;  // which pieces, and the reference force
   double scale;
+  DerivativeWindows windows;  // the record's, computed once
 
   template <typename T>
   bool operator()(T const* const* p, T* residual) const {
@@ -303,7 +304,7 @@ struct FamilyCost {
     try {
       auto model = family.template make<T>(p[0], std::move(ext));
       family.template set_state<T>(model, p[0], p[1]);
-      extended_residuals(model, *record, scale, residual);
+      extended_residuals(model, *record, scale, residual, windows);
     } catch (const InvalidParameter&) {
       return false;
     }
@@ -318,7 +319,8 @@ template <class Family>
 FamilyCostFunction<Family>* make_cost(const Record& r, const Family& family,
                                       const ExtensionParameters<double>& pieces, double scale,
                                       std::size_t theta_size) {
-  auto* cost = new FamilyCostFunction<Family>(new FamilyCost<Family>{&r, family, pieces, scale});
+  auto* cost = new FamilyCostFunction<Family>(new FamilyCost<Family>{
+      &r, family, pieces, scale, record_derivative_windows(r.time, r.displacement)});
   cost->AddParameterBlock(static_cast<int>(theta_size));
   cost->AddParameterBlock(static_cast<int>(family.state_count()));
   cost->SetNumResiduals(static_cast<int>(r.size()));

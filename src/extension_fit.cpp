@@ -33,52 +33,21 @@ ExtendedSlipRun run_extended_slip(const MaxwellSlipParameters<double>& base,
   const std::size_t n = r.size();
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(base), ext, 2);
   model.base().reset(initial);
-  std::vector<double> xs(r.displacement);
-  const auto& time = r.time;
-  if (ext.delay && ext.delay->delay != 0.0) {
-    std::size_t j = 0;
-    for (std::size_t k = 0; k < n; ++k) {
-      const double tv = time[k] - ext.delay->delay;
-      if (tv <= time.front()) {
-        xs[k] = r.displacement.front();
-      } else if (tv >= time.back()) {
-        xs[k] = r.displacement.back();
-      } else {
-        while (j + 1 < n && time[j + 1] <= tv) ++j;
-        const double w = (tv - time[j]) / (time[j + 1] - time[j]);
-        xs[k] = r.displacement[j] + (r.displacement[j + 1] - r.displacement[j]) * w;
-      }
-    }
-  }
+  const double asymmetry = ext.asymmetry ? ext.asymmetry->asymmetry : 0.0;
   ExtendedSlipRun out;
-  out.velocity.assign(n, 0.0);
-  out.acceleration.assign(n, 0.0);
-  for (std::size_t k = 1; k < n; ++k)
-    out.velocity[k] = (xs[k] - xs[k - 1]) / (time[k] - time[k - 1]);
-  if (n >= 3) {
-    for (std::size_t k = 1; k + 1 < n; ++k)
-      out.acceleration[k] =
-          (out.velocity[k + 1] - out.velocity[k]) / (0.5 * (time[k + 1] - time[k - 1]));
-    out.acceleration[0] = out.acceleration[1];
-    out.acceleration[n - 1] = out.acceleration[n - 2];
-  }
   out.force.resize(n);
   out.sliding.resize(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    ExtendedMotion<double> c;
-    c.x = xs[k];
-    c.dx = k > 0 ? xs[k] - xs[k - 1] : 0.0;
-    c.velocity = out.velocity[k];
-    c.acceleration = out.acceleration[k];
-    c.dt = k > 0 ? time[k] - time[k - 1] : 0.0;
-    c.time = time[k] - time.front();
-    if (r.has_normal()) {
-      c.normal = r.normal[k];
-      c.has_normal = true;
-    }
-    out.force[k] = model.step_shifted(c);
-    out.sliding[k] = model.base().sliding(model.level()) ? 1 : 0;
-  }
+  out.velocity.resize(n);
+  out.acceleration.resize(n);
+  for_each_extended_step(model, std::span<const double>(r.time),
+                         std::span<const double>(r.displacement),
+                         std::span<const double>(r.normal), nullptr,
+                         [&](std::size_t k, const ExtendedMotion<double>& c, double force) {
+                           out.force[k] = force;
+                           out.sliding[k] = model.base().sliding(model.level(), asymmetry) ? 1 : 0;
+                           out.velocity[k] = c.piece_velocity;
+                           out.acceleration[k] = c.acceleration;
+                         });
   return out;
 }
 
@@ -94,7 +63,8 @@ struct ExtendedCost {
   const Record* record;
   std::size_t operators;
   ExtensionParameters<double> pieces;
-  double scale;  // 1 / rms(F)
+  double scale;                // 1 / rms(F)
+  DerivativeWindows windows;   // the record's, computed once
 
   template <typename T>
   bool operator()(T const* const* p, T* residual) const {
@@ -116,7 +86,7 @@ struct ExtendedCost {
       std::vector<T> d(m);
       for (std::size_t i = 0; i < m; ++i) d[i] = p[1][i] * exp(p[0][m + i]);
       model.base().reset(std::span<const T>(d));
-      extended_residuals(model, *record, scale, residual);
+      extended_residuals(model, *record, scale, residual, windows);
     } catch (const InvalidParameter&) {
       return false;  // outside the domain: Ceres rejects the step
     }
@@ -155,7 +125,8 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   for (double& v : rho) v = std::clamp(v, -1.0, 1.0);
 
   double rms = std::sqrt(sum_sq(r.force) / static_cast<double>(r.size()));
-  auto* functor = new ExtendedCost{&r, m, ext0, rms > 0 ? 1.0 / rms : 1.0};
+  auto* functor = new ExtendedCost{&r, m, ext0, rms > 0 ? 1.0 / rms : 1.0,
+                                   record_derivative_windows(r.time, r.displacement)};
   auto* cost = new ceres::DynamicAutoDiffCostFunction<ExtendedCost, 16>(functor);
   cost->AddParameterBlock(static_cast<int>(theta.size()));
   cost->AddParameterBlock(static_cast<int>(m));
@@ -196,7 +167,18 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
       problem.SetParameterUpperBound(theta.data(), static_cast<int>(m + i), hi);
     }
   }
-  if (fix_theta) problem.SetParameterBlockConstant(theta.data());
+  if (fix_theta) {
+    problem.SetParameterBlockConstant(theta.data());
+  } else {
+    // Parameters derived rather than fitted (effect_table.hpp: held_in_fit) stay where the start
+    // put them.
+    std::vector<int> held;
+    for (std::size_t j = 0; j < names.size(); ++j)
+      if (held_in_fit(names[j].first, names[j].second)) held.push_back(static_cast<int>(2 * m + j));
+    if (!held.empty())
+      problem.SetManifold(theta.data(),
+                          new ceres::SubsetManifold(static_cast<int>(theta.size()), held));
+  }
 
   ceres::Solver::Options options;
   options.minimizer_type = ceres::TRUST_REGION;

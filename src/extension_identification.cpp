@@ -32,12 +32,8 @@ RecordSignals record_signals(const Record& r) {
   RecordSignals s;
   s.v.assign(n, 0.0);
   s.a.assign(n, 0.0);
-  for (std::size_t k = 1; k < n; ++k)
-    s.v[k] = (r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]);
-  for (std::size_t k = 1; k + 1 < n; ++k)
-    s.a[k] = (s.v[k + 1] - s.v[k]) / (0.5 * (r.time[k + 1] - r.time[k - 1]));
-  s.a.front() = s.a[1];
-  s.a.back() = s.a[n - 2];
+  apply_local_derivatives<double>(r.time, r.displacement,
+                                  record_derivative_windows(r.time, r.displacement), s.v, s.a);
   return s;
 }
 

@@ -16,11 +16,31 @@ namespace friction::extension_detail {
 
 namespace {
 
-// A fit of the current pieces and start from the current solution; throws when it fails.
+// What the profiles of a record need (extension_fit.hpp), computed once.
+struct ProfileContext {
+  DerivativeWindows windows;
+  ProfileScales scales;
+};
+
+ProfileContext profile_context(const Record& r, const ExtendedSlipFit& cur) {
+  return {record_derivative_windows(r.time, r.displacement),
+          profile_scales(r,
+                         run_extended_slip(cur.base, cur.ext,
+                                           deflections_from_relative(cur.base, cur.rho), r),
+                         cur.ext.reference_force)};
+}
+
+// A fit of the current pieces and `start` (`profiled` started by its profile, the stiffnesses and
+// added terms projected) from the current solution; throws when it fails.
 ExtendedSlipFit fit_step(const Record& r, const ExtendedSlipFit& cur,
-                         const ExtensionParameters<double>& start, Effect e,
+                         const ExtensionParameters<double>& start,
+                         const std::vector<Effect>& profiled, const ProfileContext& pc,
                          const ExtensionFitOptions& o) {
-  ExtendedSlipFit f = fit_extended_slip(r, cur.base, cur.rho, start, false, o.max_iterations);
+  ProfiledStart p{cur.base, start, 0, 0};
+  for (Effect e : profiled)
+    p = profile_start(r, p.base, cur.rho, p.ext, e, pc.windows, pc.scales);
+  const Effect e = profiled.front();
+  ExtendedSlipFit f = fit_extended_slip(r, p.base, cur.rho, p.ext, false, o.max_iterations);
   if (!f.ok)
     throw NumericalError("identify: the fit of the " + std::string(effect_name(e)) +
                          " extension found no usable solution");
@@ -32,6 +52,7 @@ ExtendedSlipFit fit_step(const Record& r, const ExtendedSlipFit& cur,
 ExtendedSlipFit add_pieces(const Record& r, ExtendedSlipFit cur, const std::vector<Effect>& effects,
                            const ExtensionFitOptions& o, std::vector<Effect>& order) {
   const double f0ref = cur.ext.reference_force;
+  const ProfileContext pc = profile_context(r, cur);
   if (o.order == ExtensionOrder::joint) {
     const ResidualEvidence ev = analyse_residual(cur.base, cur.ext, r);
     ExtensionParameters<double> start = cur.ext;
@@ -40,7 +61,7 @@ ExtendedSlipFit add_pieces(const Record& r, ExtendedSlipFit cur, const std::vect
       start = extension_start(e, start, ev, r, f0ref);
       order.push_back(e);
     }
-    return fit_step(r, cur, start, effects.front(), o);
+    return fit_step(r, cur, start, velocity_pieces_first(effects), pc, o);
   }
   std::vector<Effect> remaining = effects;
   while (!remaining.empty()) {
@@ -60,7 +81,7 @@ ExtendedSlipFit add_pieces(const Record& r, ExtendedSlipFit cur, const std::vect
     const ExtensionParameters<double> start = extension_start(e, cur.ext, ev, r, f0ref);
     for (Effect added : kAllEffects)
       if (start.has(added) && !cur.ext.has(added)) order.push_back(added);
-    cur = fit_step(r, cur, start, e, o);
+    cur = fit_step(r, cur, start, {e}, pc, o);
   }
   return cur;
 }
@@ -68,27 +89,20 @@ ExtendedSlipFit add_pieces(const Record& r, ExtendedSlipFit cur, const std::vect
 // The force with the fitted pieces taken out: added terms subtracted, divided by the level along
 // the fitted model's run.
 std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit& cur) {
-  const RecordSignals sig = record_signals(r);
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(cur.base), cur.ext, 2);
   model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho)));
   std::vector<double> corrected(r.size());
-  for (std::size_t k = 0; k < r.size(); ++k) {
-    ExtendedMotion<double> c;
-    c.x = r.displacement[k];
-    c.dx = k > 0 ? r.displacement[k] - r.displacement[k - 1] : 0.0;
-    c.velocity = sig.v[k];
-    c.acceleration = sig.a[k];
-    c.dt = k > 0 ? r.time[k] - r.time[k - 1] : 0.0;
-    c.time = r.time[k] - r.time.front();
-    if (r.has_normal()) c.normal = r.normal[k], c.has_normal = true;
-    model.step_shifted(c);
-    const double vl = cur.ext.frictional_lag ? model.lagged_velocity() : sig.v[k];
-    double added = 0;
-    if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
-    if (cur.ext.offset) added += cur.ext.offset->offset;
-    if (cur.ext.inertia) added += cur.ext.inertia->mass * sig.a[k];
-    corrected[k] = (r.force[k] - added) / std::max(model.level(), 0.05);
-  }
+  for_each_extended_step(
+      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
+      std::span<const double>(r.normal), nullptr,
+      [&](std::size_t k, const ExtendedMotion<double>& c, double) {
+        const double vl = cur.ext.frictional_lag ? model.lagged_velocity() : c.piece_velocity;
+        double added = 0;
+        if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
+        if (cur.ext.offset) added += cur.ext.offset->offset;
+        if (cur.ext.inertia) added += cur.ext.inertia->mass * c.acceleration;
+        corrected[k] = (r.force[k] - added) / std::max(model.level(), 0.05);
+      });
   return corrected;
 }
 

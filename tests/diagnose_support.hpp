@@ -186,30 +186,26 @@ struct SlipLevel {
 };
 
 /// F(t_k) = sum k_i delta_i with delta_i(t+1) = clamp(delta_i + dx, lower, upper) (paper eq. 4),
-/// starting from the given deflections.
+/// starting from the given deflections.  The level scale sees the drive's exact velocity at t_k
+/// (`velocity`; empty: the interval velocity dx/dt, for callers without an analytic motion), and an
+/// asymmetry a makes the slip limits direction-dependent, [-(1 - a) c Delta_i, (1 + a) c Delta_i]:
+/// an asperity whose friction depends on the direction of slip.
 inline std::vector<double> slip_force(const SlipSystem& s, const std::vector<double>& time,
                                       const std::vector<double>& x, const SlipLevel& level,
-                                      std::vector<double> d) {
+                                      std::vector<double> d,
+                                      const std::vector<double>& velocity = {}) {
   std::vector<double> f(x.size());
-  double f0 = 0;
-  for (std::size_t i = 0; i < s.k.size(); ++i) f0 += s.k[i] * s.delta[i];
-  double previous_force = 0, previous_level = 1;
   for (std::size_t k = 0; k < x.size(); ++k) {
     const double dx = k ? x[k] - x[k - 1] : 0.0;
-    const double v = k ? dx / (time[k] - time[k - 1]) : 0.0;
-    double c = level.scale ? level.scale(k, time[k] - time.front(), x[k], v) : 1.0;
-    if (level.asymmetry != 0) {
-      const double dir = std::clamp(previous_force / (previous_level * f0), -1.0, 1.0);
-      c *= 1 + level.asymmetry * dir;
-    }
+    const double v = !velocity.empty() ? velocity[k] : k ? dx / (time[k] - time[k - 1]) : 0.0;
+    const double c = level.scale ? level.scale(k, time[k] - time.front(), x[k], v) : 1.0;
     double force = 0;
     for (std::size_t i = 0; i < s.k.size(); ++i) {
-      d[i] = std::clamp(d[i] + dx, -s.delta[i] * c, s.delta[i] * c);
+      d[i] = std::clamp(d[i] + dx, -s.delta[i] * c * (1 - level.asymmetry),
+                        s.delta[i] * c * (1 + level.asymmetry));
       force += s.k[i] * d[i];
     }
     f[k] = force;
-    previous_force = force;
-    previous_level = c;
   }
   return f;
 }
@@ -338,6 +334,7 @@ inline std::vector<double> lagged_velocity(const std::function<double(double)>& 
 /// factors multiply); added terms are summed.  A delay shifts the whole system (every term sees
 /// x(t - D)).  Frictional lag is a viscous force magnitude * v_l with v_l the velocity through a
 /// first-order lag of time constant `lag_time`, written with the analytic velocity of the drive.
+/// Velocities are the drive's exact ones at t_k, never a difference of the samples.
 inline Clean make_clean(const std::vector<Injection>& effects, const Excitation& ex, std::size_t n,
                         double t0, const SlipSystem& s = {}) {
   Clean c = base_clean(ex, n, t0);
@@ -390,7 +387,9 @@ inline Clean make_clean(const std::vector<Injection>& effects, const Excitation&
       for (const auto& f : scales) product *= f(k, t, x, v);
       return product;
     };
-  c.force = slip_force(s, c.time, xdrive, level, d0);
+  std::vector<double> vdrive(n);
+  for (std::size_t k = 0; k < n; ++k) vdrive[k] = ex.v(c.time[k] - shift);
+  c.force = slip_force(s, c.time, xdrive, level, d0, vdrive);
   for (const Injection& in : effects) {
     if (in.effect == Injected::frictional_lag) {
       const std::vector<double> vl =
@@ -398,8 +397,7 @@ inline Clean make_clean(const std::vector<Injection>& effects, const Excitation&
       for (std::size_t k = 0; k < n; ++k) c.force[k] += in.magnitude * vl[k];
     }
     for (std::size_t k = 0; k < n; ++k) {
-      const double v =
-          k ? (xdrive[k] - xdrive[k - 1]) / (c.time[k] - c.time[k - 1]) : ex.v(c.time[k] - shift);
+      const double v = vdrive[k];  // the drive's exact velocity at t_k (no library convention)
       if (in.effect == Injected::viscous) c.force[k] += in.magnitude * v;
       if (in.effect == Injected::offset) c.force[k] += in.magnitude;
       if (in.effect == Injected::inertia) c.force[k] += in.magnitude * ex.a(c.time[k] - shift);

@@ -170,13 +170,17 @@ TEST(Extensions, FrictionalLagDelaysTheVelocityOfTheViscousTerm) {
   }
 }
 
-TEST(Extensions, AsymmetryGivesDirectionalLevelsCentredPreslidingAndNoJump) {
+// Direction-dependent slip limits: sliding levels (1 +- a) F0, no jump anywhere, and, while the
+// level is constant, exactly the symmetric model plus a F0 once every operator has slipped (presliding
+// and rests included); a changing level (here a drift) tells the two apart.
+TEST(Extensions, AsymmetryIsDirectionalSlipLimitsAndAnOffsetWhileTheLevelIsConstant) {
   const double a = 0.2;
   ExtensionParameters<double> p;
   p.asymmetry = {{a}};
   auto m = extended(p);
   std::vector<double> time, x;
-  // Slide +, then - , then + again (triangle wave of +-60 um, well beyond the largest threshold).
+  // Slide +, then -, then + again (triangle wave of +-60 um, well beyond the largest threshold),
+  // then presliding loops of decreasing amplitude and a rest.
   const double ts = 1e-3, step = 1e-7;
   double pos = 0;
   for (int k = 0; k < 3000; ++k) {
@@ -184,6 +188,10 @@ TEST(Extensions, AsymmetryGivesDirectionalLevelsCentredPreslidingAndNoJump) {
     const int phase = (k / 600) % 2;
     pos += (k < 300 ? step : (phase ? -step : step));
     x.push_back(pos);
+  }
+  for (int k = 0; k < 3000; ++k) {
+    time.push_back(ts * (3000 + k));
+    x.push_back(pos + 6e-6 * (1 - k / 3000.0) * std::sin(2 * M_PI * k / 400.0));
   }
   const auto f = run(m, time, x);
   const double f_plus = f[1799], f_minus = f[1199];  // the ends of a + and of a - slide
@@ -194,28 +202,21 @@ TEST(Extensions, AsymmetryGivesDirectionalLevelsCentredPreslidingAndNoJump) {
   for (std::size_t k = 1; k < f.size(); ++k)
     ASSERT_LE(std::abs(f[k] - f[k - 1]), kStiffness * std::abs(x[k] - x[k - 1]) * (1 + 1e-9))
         << "sample " << k;
-
-  // Presliding from the virgin state is centred.  Inside every threshold the level does not act:
-  // the loop is exactly symmetric.  A loop in which the smaller operators slip is centred up to a
-  // second-order term (the level follows the force, a F / F0), far from the a F0 of sliding.
-  auto virgin_loop = [&](double amplitude) {
-    auto centred = extended(p);
-    centred.reset();
-    std::vector<double> loop;
-    for (int k = 1; k < 4000; ++k) {
-      const double dx =
-          amplitude * (std::sin(2 * M_PI * k / 1000.0) - std::sin(2 * M_PI * (k - 1) / 1000.0));
-      loop.push_back(centred.step(Motion<double>{dx, dx / 1e-3, 1e-3}));
-    }
-    const auto [lo, hi] = std::minmax_element(loop.begin() + 2000, loop.end());
-    return std::pair{*lo, *hi};
-  };
-  const auto [lo_small, hi_small] = virgin_loop(0.8e-6);
-  EXPECT_NEAR(hi_small, kStiffness * 0.8e-6, 1e-12);
-  EXPECT_NEAR(lo_small, -hi_small, 1e-15);
-  const auto [lo, hi] = virgin_loop(4e-6);
-  EXPECT_GT(hi - lo, 0.4 * kF0);
-  EXPECT_LT(std::abs(hi + lo) / 2, 0.25 * a * kF0);
+  // The symmetric model plus a F0, from the first full slide on.
+  ExtensionParameters<double> offset;
+  offset.offset = {{a * kF0}};
+  auto o = extended(offset);
+  const auto g = run(o, time, x);
+  for (std::size_t k = 700; k < f.size(); ++k) ASSERT_NEAR(f[k], g[k], 1e-12) << k;
+  // With a drift the asymmetry scales with the level and the offset does not.
+  p.drift = {{0.2}};
+  offset.drift = {{0.2}};
+  auto md = extended(p);
+  auto od = extended(offset);
+  const auto fd = run(md, time, x), gd = run(od, time, x);
+  double worst = 0;
+  for (std::size_t k = 700; k < f.size(); ++k) worst = std::max(worst, std::abs(fd[k] - gd[k]));
+  EXPECT_GT(worst, 0.1 * a * kF0);
 }
 
 TEST(Extensions, PositionDependenceFollowsTheTravel) {

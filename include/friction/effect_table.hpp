@@ -53,6 +53,7 @@
 #pragma once
 
 #include <algorithm>
+#include <initializer_list>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -788,6 +789,109 @@ inline PieceStart start_from_regression(Effect e, const RegressionSignals& s) {
       return p;
   }
   return p;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Profiles: where a fit of each piece starts (issue 7).  Every nonlinear parameter of a piece is
+// started from the best point of a grid over its physical range, derived from the record; the
+// stiffnesses and the added terms (viscous, offset, mass) are solved by bounded least squares at
+// every point, so they need no start at all (extension_profile.cpp).  The ranges:
+//   stribeck             velocity 1 % to 100 % of the 95th-percentile sliding speed (9 points,
+//                        log), exponent 0.5-2.5 (5), static 1.05-2.6 F0 (6);
+//   position-dependence  wavelength from 10 samples' travel to a third of the travel (14, log),
+//                        phase (8), amplitude 2-15 % of F0 (3);
+//   drift                +-(0.02-0.6) per duration (8) and 0;
+//   asymmetry            +-(0.05-0.3) (8);
+//   delay                +-0.1 of the shortest interval between reversals (21, linear): a
+//                        fraction of the duration would make the cost grow as N^2;
+//   frictional-lag       half a sample to 0.3 of the shortest interval between reversals (10, log);
+//   normal-load          none: its level is N(t)/N_mean and mu = F0 / N_mean is derived, because
+//                        with the reference force held, (Delta, mu) and (2 Delta, mu/2) give the
+//                        same forces -- mu is not identifiable as a free parameter;
+//   viscous, offset, inertia  none (solved by projection).
+
+/// The scales of a record the profiles' ranges follow from.
+struct ProfileScales {
+  double reference_force = 0;    ///< F0 [N]
+  double sliding_speed_95 = 0;   ///< 95th percentile of |v| while sliding [m/s]
+  double travel = 0;             ///< max x - min x [m]
+  double sample_travel = 0;      ///< median |dx| while moving [m]
+  double reversal_interval = 0;  ///< shortest interval between two reversals [s]
+  double duration = 0;           ///< T [s]
+  double sample_period = 0;      ///< Ts [s]
+};
+
+/// One axis of a profile: a parameter (methods.md 7 name) and its grid.
+struct ProfileAxis {
+  std::string_view parameter;
+  std::vector<double> values;
+};
+
+namespace table_detail {
+inline std::vector<double> log_grid(double lo, double hi, int n) {
+  std::vector<double> g;
+  if (!(lo > 0) || !(hi > lo)) return {lo > 0 ? lo : hi};
+  for (int i = 0; i < n; ++i) g.push_back(lo * std::pow(hi / lo, n > 1 ? double(i) / (n - 1) : 0.0));
+  return g;
+}
+inline std::vector<double> symmetric(std::initializer_list<double> magnitudes, double scale,
+                                     bool with_zero) {
+  std::vector<double> g;
+  for (double m : magnitudes) {
+    g.push_back(-m * scale);
+    g.push_back(m * scale);
+  }
+  if (with_zero) g.push_back(0.0);
+  std::sort(g.begin(), g.end());
+  return g;
+}
+}  // namespace table_detail
+
+/// The profile of effect e (its axes, whose product is the grid); empty when nothing is profiled.
+inline std::vector<ProfileAxis> profile_axes(Effect e, const ProfileScales& s) {
+  using table_detail::log_grid;
+  using table_detail::symmetric;
+  const double f0 = s.reference_force, gap = std::max(s.reversal_interval, 2 * s.sample_period);
+  switch (e) {
+    case Effect::stribeck: {
+      std::vector<double> fs;
+      for (double r : {1.05, 1.15, 1.3, 1.6, 2.0, 2.6}) fs.push_back(r * f0);
+      return {{"stribeck_velocity",
+               log_grid(0.01 * s.sliding_speed_95, s.sliding_speed_95, 9)},
+              {"stribeck_exponent", {0.5, 1.0, 1.5, 2.0, 2.5}},
+              {"static", fs}};
+    }
+    case Effect::position_dependence: {
+      std::vector<double> phase;
+      for (int i = 0; i < 8; ++i) phase.push_back(2 * M_PI * i / 8);
+      return {{"wavelength", log_grid(10 * s.sample_travel, s.travel / 3, 14)},
+              {"phase", phase},
+              {"amplitude", {0.02 * f0, 0.06 * f0, 0.15 * f0}}};
+    }
+    case Effect::drift:
+      return {{"relative_rate",
+               symmetric({0.02, 0.06, 0.2, 0.6}, 1 / std::max(s.duration, 1e-12), true)}};
+    case Effect::asymmetry:
+      return {{"asymmetry", symmetric({0.05, 0.1, 0.2, 0.3}, 1.0, false)}};
+    case Effect::delay: {
+      std::vector<double> d;
+      for (int i = -10; i <= 10; ++i) d.push_back(0.1 * gap * i / 10);
+      return {{"delay", d}};
+    }
+    case Effect::frictional_lag:
+      return {{"lag_time", log_grid(0.5 * s.sample_period, 0.3 * gap, 10)}};
+    case Effect::viscous:
+    case Effect::offset:
+    case Effect::inertia:
+    case Effect::normal_load:
+      return {};
+  }
+  return {};
+}
+
+/// Parameters held at a derived value during a fit (normal-load's mu = F0 / N_mean; see above).
+inline bool held_in_fit(Effect e, std::string_view parameter) {
+  return e == Effect::normal_load && parameter == "friction_coefficient";
 }
 
 }  // namespace friction

@@ -48,14 +48,15 @@ struct ExtensionEstimate {
 /// extension_identification.cpp).  The displacement buffers are reused between evaluations (per
 /// thread and scalar type), so an evaluation does not allocate.
 template <class Model, typename T>
-void extended_residuals(Model& model, const Record& r, double scale, T* residual) {
+void extended_residuals(Model& model, const Record& r, double scale, T* residual,
+                        const DerivativeWindows& windows) {
   const std::size_t n = r.size();
   thread_local std::vector<T> x, f;
   x.resize(n);
   f.resize(n);
   for (std::size_t k = 0; k < n; ++k) x[k] = T(r.displacement[k]);
   simulate_extended(model, std::span<const double>(r.time), std::span<const T>(x),
-                    std::span<const double>(r.normal), std::span<T>(f));
+                    std::span<const double>(r.normal), std::span<T>(f), &windows);
   for (std::size_t k = 0; k < n; ++k) residual[k] = (T(r.force[k]) - f[k]) * scale;
 }
 
@@ -70,6 +71,26 @@ struct ExtendedSlipRun {
 ExtendedSlipRun run_extended_slip(const MaxwellSlipParameters<double>& base,
                                   const ExtensionParameters<double>& ext,
                                   std::span<const double> initial, const Record& r);
+
+/// The record's scales that the profiles' ranges follow from (effect_table.hpp), from the record
+/// and a free run of the current model on it (its sliding regime and its velocities at t_k).
+ProfileScales profile_scales(const Record& r, const ExtendedSlipRun& run, double reference_force);
+
+/// Where a fit starts (effect_table.hpp, Profiles): the best point of the grid of `profiled`'s
+/// nonlinear parameters, with the stiffnesses and every added term of `ext` (viscous, offset,
+/// mass) solved by bounded least squares at each point (k, viscous, mass >= 0), the thresholds and
+/// the relative initial deflections `rho` held.  A normal-load piece is set to its derived mu.
+/// Without axes (an added term) it is the projection alone.
+struct ProfiledStart {
+  MaxwellSlipParameters<double> base;  ///< stiffnesses solved, thresholds as given
+  ExtensionParameters<double> ext;     ///< the best point, added terms solved
+  double rss = 0;                      ///< at the best point [N^2]
+  std::size_t points = 0;              ///< grid points evaluated
+};
+ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>& base,
+                            const std::vector<double>& rho, const ExtensionParameters<double>& ext,
+                            Effect profiled, const DerivativeWindows& windows,
+                            const ProfileScales& scales);
 
 /// Box of one extension parameter during a fit (f0 the reference force, duration of the record,
 /// vmax its largest speed).

@@ -12,8 +12,9 @@
 //     added term would make the force jump at every reversal; a scaled slip force does not, because
 //     in presliding the operators are inside their thresholds and do not feel the level.  The level
 //     passed to the base is the product
-//         L = level_in * L_stribeck * L_asymmetry * L_position * L_drift * L_normal
-//     floored at kMinimumLevel so that the base never sees a non-positive slip force;
+//         L = level_in * L_stribeck * L_position * L_drift * L_normal
+//     floored at kMinimumLevel so that the base never sees a non-positive slip force; the
+//     asymmetry makes the slip forces depend on the direction (Motion::asymmetry);
 //   * added terms (viscous, offset, inertia) are summed to the base's force.
 //
 // F0 is the reference force: the base's nominal sliding level (MaxwellSlip sum k_i Delta_i, DNLRX
@@ -26,11 +27,15 @@
 //                        `stribeck_exponent` [-]; the curve g(v)/F0 of section 5 (stribeck.hpp)
 //   frictional-lag       v_l follows v through a first-order lag, dv_l/dt = (v - v_l)/tau,
 //                        `lag_time` tau [s]; it feeds the stribeck and viscous pieces (without one
-//                        of them it has no effect).  Exact for piecewise-constant v:
-//                        v_l+ = v + (v_l - v) exp(-dt/tau).  The lag starts at the first moving
-//                        interval's velocity (as if that motion had been going on: records are
-//                        cut from longer motion; initial states are estimated, methods.md 2)
-//   asymmetry            L *= 1 + a d,  `asymmetry` a = (F+ - F-)/(F+ + F-) in (-1, 1)
+//                        of them it has no effect).  Exact for v linear between the sample
+//                        instants (a record's fitted derivative; slope s = (v_k - v_{k-1})/dt,
+//                        e = exp(-dt/tau)): v_l,k = v_k - s tau + (v_l,k-1 - v_{k-1} + s tau) e,
+//                        and for the causal step's constant interval velocity
+//                        v_l,k = v_k + (v_l,k-1 - v_k) e.  The lag starts at
+//                        the first sample's velocity (as if that motion had been going on:
+//                        records are cut from longer motion; initial states are estimated)
+//   asymmetry            slip limits (1 + a) in +x and (1 - a) in -x (Motion::asymmetry),
+//                        `asymmetry` a = (F+ - F-)/(F+ + F-) in (-1, 1)
 //   offset               + c                                             `offset` [N]
 //   inertia              + m a                                           `mass` [kg]
 //   position-dependence  L *= 1 + (A/F0) sin(2 pi x / lambda + phi)      `amplitude` A [N],
@@ -41,30 +46,30 @@
 //   normal-load          L *= mu N(t) / F0, i.e. N(t)/N_ref with N_ref = F0/mu
 //                        `friction_coefficient` mu = F0/N_ref [-]; factor 1 when no normal force
 //
-// Asymmetry: the direction d.  Levels (1+a) F0 and (1-a) F0 in + and - sliding, presliding
-// centred.  Switching the level with sgn(v) at a reversal would clamp every operator sitting at its
-// threshold to the new threshold, a jump of 2 a F0 exactly where presliding starts; holding the
-// sign of the last sliding direction and switching when sliding starts the other way moves the
-// same jump to the start of the slide.  So the direction indicator is continuous: d is the base's
-// own force normalised by its sliding level at the previous sample,
-//     d(t) = clamp(F_base(t-1) / (L(t-1) F0), -1, 1),
-// which is +1 / -1 while sliding in +x / -x (the base force is L F0 there) and travels between
-// them through presliding, together with the force.  The sign of the last slide is thus held
-// through presliding (d keeps it until the force has crossed zero) and the level changes gradually,
-// so there is no jump; from the virgin state d = 0 and small presliding loops are centred.  Bases
-// whose sliding force exceeds L F0 (viscous, Stribeck peak) saturate the clamp, which keeps d = +-1
-// in sliding.  For the stateless static curve d is sgn(v) of the previous sample.
+// Asymmetry: direction-dependent slip limits.  Each element slips at (1 + a) L its nominal slip
+// force moving in +x and at (1 - a) L moving in -x: an asperity whose friction coefficient depends
+// on the direction of slip.  For a Maxwell Slip operator that is the box
+// [-(1 - a) L Delta_i, (1 + a) L Delta_i]: no jump at a reversal (the box does not move), and the
+// sliding levels are (1 +- a) F0.  While L is constant the box is a G + [-G, G] (G = L Delta_i):
+// the force is exactly a symmetric model plus the constant a L F0, in sliding, in presliding and
+// at rest, so an asymmetry and an offset are the same force until the level changes (a Stribeck
+// curve, a drift, a position term, a normal load) -- which is what effect_table.hpp names as the
+// excitation that separates the two.  (An earlier form switched a symmetric level with a
+// continuous direction indicator; it put presliding loops "centred" at zero force, which no
+// physical asymmetry does, and fitted a record made with direction-dependent limits worse than an
+// offset: 6.6 times the floor against 1.0 on the discovery study's records.)
 //
-// Differentiators.  Per sample, the caller provides the context (`ExtendedMotion`); `step(Motion)`
-// (the FrictionModel interface, used by `simulate`) builds it: x and t accumulate the increments
-// from 0 at reset, and the acceleration is the backward second difference
-//     a_k = (v_k - v_{k-1}) / ((dt_k + dt_{k-1}) / 2),   v_k = dx_k / dt_k,
-// which is causal but estimates a at t_{k-1} (one sample late; 0 for the first interval).  On a
-// record, `simulate_extended` uses the central second difference of the piecewise-linear record
-//     a_k = (v_{k+1} - v_k) / ((dt_{k+1} + dt_k) / 2),
-// second-order accurate at t_k for uniform sampling (a_0 = a_1 and a_{N-1} = a_{N-2} at the ends).
-// It amplifies displacement noise s_x to about 2 s_x / Ts^2 (uniform Ts): fit `mass` on records
-// whose accelerations dominate that.
+// Differentiators: which velocity each part uses (sample_derivatives.hpp says why).  The base
+// model steps with the increment dx_k and the interval velocity dx_k/dt_k (Maxwell Slip and DNLRX
+// use only dx; LuGre's and GMS's exact steps are written for a constant velocity over the
+// interval).  The pieces use a velocity and an acceleration at the sample instant t_k
+// (ExtendedMotion::piece_velocity, acceleration): on a record, `simulate_extended` takes them from
+// local quadratic fits whose windows the record's own spectrum decides (choose_derivative_windows;
+// a delay's shifted record is differentiated by the same filters); per sample, `step(Motion)` --
+// what a controller calls -- has only the past, so there the pieces use the backward difference
+// v_k = dx_k / dt_k and the causal second difference a_k = (v_k - v_{k-1}) / ((dt_k + dt_{k-1})/2),
+// half a sample and one sample late.  What that costs a controller: sigma2 (Ts/2) a from a viscous
+// term and about m Ts j from an inertia term (j the jerk).
 //
 // Delay.  On a record the displacement at t_k - D is interpolated linearly between samples (held at
 // the first / last sample outside the record), for either sign of D; velocity and acceleration are
@@ -90,6 +95,7 @@
 #include "friction/error.hpp"
 #include "friction/model_concept.hpp"
 #include "friction/motion.hpp"
+#include "friction/sample_derivatives.hpp"
 #include "friction/scalar.hpp"
 #include "friction/stribeck.hpp"
 
@@ -330,7 +336,12 @@ template <typename T>
 struct ExtendedMotion {
   T x{0};             ///< displacement at t_k [m] (absolute: position-dependence uses it)
   T dx{0};            ///< x_k - x_{k-1} [m]
-  T velocity{0};      ///< [m/s], dx / dt for a piecewise-linear record
+  T velocity{0};      ///< [m/s], dx / dt: the interval velocity the base model steps with
+  T piece_velocity{0};  ///< [m/s], the velocity the pieces use at t_k (see the header)
+  /// piece_velocity is a value at the instant t_k, linear between samples (a record's fitted
+  /// derivative); false: the interval's constant velocity (the causal step).  The lag's exact step
+  /// differs between the two.
+  bool piece_velocity_at_instant = false;
   T acceleration{0};  ///< [m/s^2]
   T dt{0};            ///< t_k - t_{k-1} [s]; 0 for the first sample
   double time = 0.0;  ///< t_k - t_0, time since the start [s]
@@ -406,7 +417,7 @@ class Extended {
   void reset_extension_state() {
     lagged_velocity_ = T(0);
     lag_started_ = false;
-    direction_ = T(0);
+    previous_piece_velocity_ = T(0);
     level_ = T(1);
     x_ = T(0);
     time_ = 0.0;
@@ -427,6 +438,7 @@ class Extended {
     c.x = x_;
     c.dx = m.dx;
     c.velocity = m.velocity;
+    c.piece_velocity = m.velocity;  // causal: the backward difference
     c.dt = m.dt;
     c.time = time_;
     c.level = m.level;
@@ -453,6 +465,7 @@ class Extended {
     d.dx = d.x - delayed_x_;
     delayed_x_ = d.x;
     d.velocity = value_of(c.dt) > 0.0 ? T(d.dx / c.dt) : T(0);
+    d.piece_velocity = d.velocity;
     return step_shifted(d);
   }
 
@@ -462,17 +475,20 @@ class Extended {
     using std::exp;
     using std::sin;
     const double dt = value_of(c.dt);
-    T v = c.velocity;
+    T v = c.piece_velocity;
     if (p_.frictional_lag) {
-      if (dt > 0.0) {
-        if (!lag_started_ || value_of(p_.frictional_lag->lag_time) <= 0.0) {
-          lagged_velocity_ = c.velocity;
-          lag_started_ = true;
-        } else {
-          lagged_velocity_ = c.velocity + (lagged_velocity_ - c.velocity) *
-                                              exp(-c.dt / p_.frictional_lag->lag_time);
-        }
+      const T& tau = p_.frictional_lag->lag_time;
+      if (!lag_started_ || value_of(tau) <= 0.0) {
+        lagged_velocity_ = v;
+        lag_started_ = true;
+      } else if (dt > 0.0 && c.piece_velocity_at_instant) {
+        const T slope_tau = (v - previous_piece_velocity_) * tau / c.dt;
+        lagged_velocity_ = v - slope_tau + (lagged_velocity_ - previous_piece_velocity_ + slope_tau) *
+                                               exp(-c.dt / tau);
+      } else if (dt > 0.0) {
+        lagged_velocity_ = v + (lagged_velocity_ - v) * exp(-c.dt / tau);
       }
+      previous_piece_velocity_ = v;
       v = lagged_velocity_;
     }
 
@@ -482,7 +498,6 @@ class Extended {
       level *= T(1) + (s.static_force / f0_ - T(1)) *
                           stribeck_weight(v, s.stribeck_velocity, s.stribeck_exponent);
     }
-    if (p_.asymmetry) level *= T(1) + p_.asymmetry->asymmetry * direction_;
     if (p_.position_dependence) {
       const auto& pd = *p_.position_dependence;
       level *= T(1) + pd.amplitude / f0_ * sin(T(2.0 * M_PI) * c.x / pd.wavelength + pd.phase);
@@ -493,8 +508,8 @@ class Extended {
     if (level < T(kMinimumLevel)) level = T(kMinimumLevel);
     level_ = level;
 
-    const T base_force = base_.step(Motion<T>{c.dx, c.velocity, c.dt, level});
-    if (p_.asymmetry) direction_ = clamp(T(base_force / (level * f0_)), T(-1), T(1));
+    const T asymmetry = p_.asymmetry ? p_.asymmetry->asymmetry : T(0);
+    const T base_force = base_.step(Motion<T>{c.dx, c.velocity, c.dt, level, asymmetry});
 
     T force = base_force;
     if (p_.viscous) force += p_.viscous->viscous * v;
@@ -507,8 +522,6 @@ class Extended {
   const T& level() const noexcept { return level_; }
   /// Lagged velocity v_l of the frictional-lag piece after the last step (0 without that piece).
   const T& lagged_velocity() const noexcept { return lagged_velocity_; }
-  /// Asymmetry direction indicator d in [-1, 1] for the next step.
-  const T& direction() const noexcept { return direction_; }
 
  private:
   void push_ring(double t, const T& x, const T& a) noexcept {
@@ -550,7 +563,7 @@ class Extended {
   // Extension states.
   T lagged_velocity_{0};
   bool lag_started_ = false;
-  T direction_{0};
+  T previous_piece_velocity_{0};
   T level_{1};
   // step(Motion) accumulators.
   T x_{0};
@@ -569,54 +582,82 @@ class Extended {
 
 /// Simulates an extended model on a record, from whatever state it is in (reset() it first):
 /// displacement `x` [m] at `time` [s], optional `normal` force [N] (empty: none; required by a
-/// normal-load piece), force [N] written to `force`.  Delay by interpolation and acceleration by
-/// the central second difference of the (shifted) record, as the header comment says.
-template <class Base, typename T = typename Base::Scalar>
-void simulate_extended(Extended<Base>& model, std::span<const double> time, std::span<const T> x,
-                       std::span<const double> normal, std::span<T> force) {
+/// normal-load piece), force [N] written to `force`.  Delay by interpolation, the pieces' velocity
+/// and acceleration at the sample instants by the record's derivative windows (computed here when
+/// `windows` is null), as the header comment says.
+/// The displacement at t_k - D, linearly interpolated between samples and held at the first /
+/// last sample outside the record (header: Delay); x itself when D = 0.
+template <typename T>
+std::vector<T> delayed_displacement(std::span<const double> time, std::span<const T> x,
+                                    const T& delay) {
   const std::size_t n = x.size();
-  FRICTION_CHECK(time.size() == n && force.size() == n,
-                 "simulate_extended: time, displacement and force must have the same length");
+  std::vector<T> xs(x.begin(), x.end());
+  if (value_of(delay) == 0.0) return xs;
+  std::size_t j = 0;  // time[j] <= target < time[j + 1]; targets increase with k
+  for (std::size_t k = 0; k < n; ++k) {
+    const T target = T(time[k]) - delay;
+    const double tv = value_of(target);
+    if (tv <= time.front()) {
+      xs[k] = x.front();
+    } else if (tv >= time.back()) {
+      xs[k] = x.back();
+    } else {
+      while (j + 1 < n && time[j + 1] <= tv) ++j;
+      const T w = (target - time[j]) / (time[j + 1] - time[j]);
+      xs[k] = x[j] + (x[j + 1] - x[j]) * w;
+    }
+  }
+  return xs;
+}
+
+/// The derivative windows simulate_extended uses on a record (choose_derivative_windows; the
+/// backward difference, half width 1, on records too short for the rule).  Fits that simulate the
+/// same record many times compute them once and pass them in.
+inline DerivativeWindows record_derivative_windows(std::span<const double> time,
+                                                   std::span<const double> x) {
+  if (x.size() >= 16) return choose_derivative_windows(time, x);
+  DerivativeWindows w;
+  if (x.size() >= 2) w.sampling_period = (time.back() - time.front()) / double(x.size() - 1);
+  return w;
+}
+
+/// Steps an extended model over a record, calling visit(k, context, force) after every sample
+/// (the model's state, e.g. its base's deflections and its lagged velocity, is that of sample k
+/// then).  What simulate_extended does; the profiles of extension_profile.cpp read the operators'
+/// deflections through it, so that they see exactly the model they start.
+template <class Base, typename T, class Visit>
+void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
+                            std::span<const T> x, std::span<const double> normal,
+                            const DerivativeWindows* windows, Visit&& visit) {
+  const std::size_t n = x.size();
+  FRICTION_CHECK(time.size() == n, "simulate_extended: time and displacement differ in length");
   FRICTION_CHECK(normal.empty() || normal.size() == n,
                  "simulate_extended: the normal force must be empty or as long as the record");
   const auto& p = model.extensions();
   FRICTION_CHECK(!p.normal_load || !normal.empty(),
                  "simulate_extended: the normal-load extension needs a normal force record");
   if (n == 0) return;
-
-  // The displacement at t_k - D (all samples when there is no delay).
-  std::vector<T> xs(x.begin(), x.end());
-  if (p.delay && value_of(p.delay->delay) != 0.0) {
-    const T delay = p.delay->delay;
-    std::size_t j = 0;  // time[j] <= target < time[j + 1]; targets increase with k
-    for (std::size_t k = 0; k < n; ++k) {
-      const T target = T(time[k]) - delay;
-      const double tv = value_of(target);
-      if (tv <= time.front()) {
-        xs[k] = x.front();
-      } else if (tv >= time.back()) {
-        xs[k] = x.back();
-      } else {
-        while (j + 1 < n && time[j + 1] <= tv) ++j;
-        const T w = (target - time[j]) / (time[j + 1] - time[j]);
-        xs[k] = x[j] + (x[j + 1] - x[j]) * w;
-      }
-    }
+  const std::vector<T> xs =
+      delayed_displacement(time, x, p.delay ? p.delay->delay : T(0));
+  // The pieces' velocity and acceleration at the sample instants (header: Differentiators), with
+  // the record's windows; the base's interval velocity dx/dt.
+  DerivativeWindows own;
+  if (!windows) {
+    std::vector<double> xd(n);
+    for (std::size_t k = 0; k < n; ++k) xd[k] = value_of(x[k]);
+    own = record_derivative_windows(time, xd);
+    windows = &own;
   }
-  // Velocities of the intervals and central second-difference accelerations at the samples.
   std::vector<T> v(n, T(0)), a(n, T(0));
-  for (std::size_t k = 1; k < n; ++k) v[k] = (xs[k] - xs[k - 1]) / (time[k] - time[k - 1]);
-  if (n >= 3) {
-    for (std::size_t k = 1; k + 1 < n; ++k)
-      a[k] = (v[k + 1] - v[k]) / (0.5 * (time[k + 1] - time[k - 1]));
-    a[0] = a[1];
-    a[n - 1] = a[n - 2];
-  }
+  apply_local_derivatives<T>(time, std::span<const T>(xs), *windows, std::span<T>(v),
+                             std::span<T>(a));
   for (std::size_t k = 0; k < n; ++k) {
     ExtendedMotion<T> c;
     c.x = xs[k];
     c.dx = k > 0 ? T(xs[k] - xs[k - 1]) : T(0);
-    c.velocity = v[k];
+    c.velocity = k > 0 ? T(c.dx / (time[k] - time[k - 1])) : T(0);
+    c.piece_velocity = v[k];
+    c.piece_velocity_at_instant = true;
     c.acceleration = a[k];
     c.dt = k > 0 ? T(time[k] - time[k - 1]) : T(0);
     c.time = time[k] - time.front();
@@ -624,16 +665,28 @@ void simulate_extended(Extended<Base>& model, std::span<const double> time, std:
       c.normal = T(normal[k]);
       c.has_normal = true;
     }
-    force[k] = model.step_shifted(c);
+    const T force = model.step_shifted(c);
+    visit(k, c, force);
   }
+}
+
+template <class Base, typename T = typename Base::Scalar>
+void simulate_extended(Extended<Base>& model, std::span<const double> time, std::span<const T> x,
+                       std::span<const double> normal, std::span<T> force,
+                       const DerivativeWindows* windows = nullptr) {
+  FRICTION_CHECK(force.size() == x.size(),
+                 "simulate_extended: time, displacement and force must have the same length");
+  for_each_extended_step(model, time, x, normal, windows,
+                         [&](std::size_t k, const ExtendedMotion<T>&, const T& f) { force[k] = f; });
 }
 
 /// Convenience overload returning the simulated force.
 template <class Base, typename T = typename Base::Scalar>
 std::vector<T> simulate_extended(Extended<Base>& model, std::span<const double> time,
-                                 std::span<const T> x, std::span<const double> normal = {}) {
+                                 std::span<const T> x, std::span<const double> normal = {},
+                                 const DerivativeWindows* windows = nullptr) {
   std::vector<T> force(x.size());
-  simulate_extended(model, time, x, normal, std::span<T>(force));
+  simulate_extended(model, time, x, normal, std::span<T>(force), windows);
   return force;
 }
 

@@ -162,7 +162,8 @@ class Gms {
       return sum_forces() + p_.viscous * m.velocity;
     }
     const auto dir = static_cast<std::int8_t>(s);
-    const T limit_scale = m.level * p_.curve(m.velocity);  // G = level g(v)
+    // G = level (1 + a s) g(v): the slip level in the direction of motion.
+    const T limit_scale = m.level * (T(1) + T(s) * m.asymmetry) * p_.curve(m.velocity);
     // exp(-C dt / G): the fraction of the distance to the curve that remains after dt of slip.
     const T remain = exp(-p_.attraction * m.dt / limit_scale);
     const T* k = p_.stiffness.data();

@@ -183,7 +183,7 @@ class LuGre {
     using std::exp;
     const T& v = m.velocity;
     const double direction = sign_of(v);
-    const T s = steady_deflection(p_, v, m.level);
+    const T s = steady_deflection(p_, v, T(m.level * (T(1) + T(direction) * m.asymmetry)));
     const T rate = T(direction) * v / s;  // |v| / s(v) [1/s]
     const T z_inf = T(direction) * s;
     const T decay = exp(-rate * m.dt);

@@ -104,9 +104,9 @@ class MaxwellSlip {
     T* delta = deflection_.data();
     const std::size_t n = deflection_.size();
     T force(0);
+    const T up = m.level * (T(1) + m.asymmetry), down = m.level * (T(1) - m.asymmetry);
     for (std::size_t i = 0; i < n; ++i) {
-      const T lim = m.level * limit[i];
-      delta[i] = clamp(T(delta[i] + m.dx), T(-lim), lim);
+      delta[i] = clamp(T(delta[i] + m.dx), T(-down * limit[i]), T(up * limit[i]));
       force += k[i] * delta[i];
     }
     return force;
@@ -119,11 +119,14 @@ class MaxwellSlip {
     return f;
   }
 
-  /// True when every operator slips at the given level (the sliding regime).
-  bool sliding(double level = 1.0) const noexcept {
-    for (std::size_t i = 0; i < size(); ++i)
-      if (std::abs(value_of(deflection_[i])) < level * value_of(p_.threshold[i]) * (1.0 - 1e-12))
-        return false;
+  /// True when every operator sits at one of its slip limits at the given level and asymmetry
+  /// (Motion::asymmetry): the sliding regime.
+  bool sliding(double level = 1.0, double asymmetry = 0.0) const noexcept {
+    for (std::size_t i = 0; i < size(); ++i) {
+      const double d = value_of(deflection_[i]), limit = level * value_of(p_.threshold[i]);
+      const double bound = d >= 0 ? limit * (1 + asymmetry) : limit * (1 - asymmetry);
+      if (std::abs(d) < bound * (1.0 - 1e-12)) return false;
+    }
     return true;
   }
 

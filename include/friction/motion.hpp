@@ -25,6 +25,11 @@ struct Motion {
   /// Slip-force scale factor from level effects (Stribeck, asymmetry, drift, ...; methods.md 7).
   /// 1 is the nominal model.  Models scale their slip forces (thresholds, s(v), g(v)) by it.
   T level = T(1);
+  /// Direction-dependent slip forces (the `asymmetry` piece of methods.md 7): the slip limits are
+  /// level (1 + a) moving in +x and level (1 - a) moving in -x.  For the Maxwell Slip operators that
+  /// is the box [-(1 - a) level Delta_i, (1 + a) level Delta_i], for LuGre, GMS and the static
+  /// curve the slip level times 1 + a sgn(v).  0 is the symmetric model.
+  T asymmetry = T(0);
 };
 
 /// The Motion of sample k of a record (displacement x at `time`), with slip-force level `level`:

@@ -57,6 +57,7 @@
 // identified off-line at t_k, the parameters themselves carry no such bias.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <span>
 #include <vector>
@@ -92,5 +93,53 @@ void local_polynomial_derivatives(std::span<const double> time, std::span<const 
 
 /// v and a at every sample, windows by the rule.
 SampleDerivatives sample_derivatives(std::span<const double> time, std::span<const double> x);
+
+/// The local quadratic fits as linear filters on any scalar: the weights come from the sample
+/// times alone (each window's 3 x 3 normal equations), so a displacement of ceres::Jet (a delay's
+/// shifted record) carries its derivatives through.  Same numbers as local_polynomial_derivatives
+/// for double.  `ts` is the nominal period the powers are scaled by (for conditioning only).
+template <typename T>
+void apply_local_derivatives(std::span<const double> time, std::span<const T> x,
+                             const DerivativeWindows& w, std::span<T> velocity,
+                             std::span<T> acceleration) {
+  const std::size_t n = x.size();
+  const double ts = w.sampling_period > 0 ? w.sampling_period : 1.0;
+  for (int order = 1; order <= 2; ++order) {
+    const std::size_t m = order == 1 ? w.velocity_half_width : w.acceleration_half_width;
+    const std::size_t width = std::min(2 * m + 1, n);
+    std::span<T> out = order == 1 ? velocity : acceleration;
+    for (std::size_t k = 0; k < n; ++k) {
+      if (width < 3) {  // fewer than three samples: nothing to differentiate
+        out[k] = T(0);
+        continue;
+      }
+      std::size_t lo = k >= m ? k - m : 0;
+      if (lo + width > n) lo = n - width;
+      double s[5] = {0, 0, 0, 0, 0};
+      for (std::size_t i = lo; i < lo + width; ++i) {
+        const double tau = (time[i] - time[k]) / ts;
+        double p = 1;
+        for (double& q : s) q += p, p *= tau;
+      }
+      // Row `order` of the inverse of the symmetric 3 x 3 matrix [s0 s1 s2; s1 s2 s3; s2 s3 s4].
+      const double a = s[0], b = s[1], c = s[2], d = s[3], e = s[4];
+      const double c00 = c * e - d * d, c01 = -(b * e - c * d), c02 = b * d - c * c;
+      const double det = a * c00 + b * c01 + c * c02;
+      double r0, r1, r2;
+      if (order == 1) {
+        r0 = c01, r1 = a * e - c * c, r2 = -(a * d - b * c);
+      } else {
+        r0 = c02, r1 = -(a * d - c * b), r2 = a * c - b * b;
+      }
+      T sum = T(0);
+      for (std::size_t i = lo; i < lo + width; ++i) {
+        const double tau = (time[i] - time[k]) / ts;
+        const double weight = (r0 + r1 * tau + r2 * tau * tau) / det;
+        sum += weight * (x[i] - x[k]);
+      }
+      out[k] = order == 1 ? T(sum / ts) : T(2.0 * sum / (ts * ts));
+    }
+  }
+}
 
 }  // namespace friction

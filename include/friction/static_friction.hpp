@@ -56,7 +56,9 @@ class StaticFriction {
   void reset() noexcept {}
 
   /// The curve at the sample's velocity.
-  T step(const Motion<T>& m) noexcept { return force(m.velocity, m.level); }
+  T step(const Motion<T>& m) noexcept {
+    return force(m.velocity, T(m.level * (T(1) + T(sign_of(m.velocity)) * m.asymmetry)));
+  }
 
   /// The curve itself, F(v) [N].
   T force(const T& v, const T& level = T(1)) const noexcept {

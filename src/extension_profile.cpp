@@ -1,0 +1,171 @@
+// Profiled starts of the extension pieces (extension_fit.hpp, effect_table.hpp: Profiles).
+//
+// A local fit is only as good as its start: the Stribeck level of a record with a peak 1.6 times
+// its Coulomb level, started from a regression of the residual, stayed at the baseline's error
+// (3.086 %) and ended at vs = 1.5e-9 m/s; an inertia started from a diluted regression ended at
+// 141 kg for ~3400 kg.  So no nonlinear parameter starts from a guess: each is started at the best
+// point of a grid over its physical range, and at every point the parameters in which the model is
+// linear -- the stiffnesses (F = sum k_i delta_i) and the added terms (viscous, offset, mass) -- are
+// solved exactly, by bounded least squares on the operators' deflections and the added terms'
+// signals.  The deflections come from the model itself (for_each_extended_step with unit
+// stiffnesses), so the level effects, the asymmetry, the lag and the delay act on them exactly as in
+// the fit that follows.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "friction/extension_fit.hpp"
+#include "friction/identification.hpp"
+#include "slip_regression.hpp"
+
+namespace friction {
+
+namespace {
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
+  return v[k];
+}
+
+// The columns of one grid point: deflections of unit-stiffness operators (M), then the added
+// terms the pieces hold, in the order viscous, offset, inertia.
+struct Columns {
+  Eigen::MatrixXd a;
+  Eigen::VectorXd lo, hi;
+  bool viscous = false, offset = false, inertia = false;
+};
+
+void fill_columns(const Record& r, const std::vector<double>& thresholds,
+                  const std::vector<double>& rho, const ExtensionParameters<double>& ext,
+                  const DerivativeWindows& windows, Columns& c) {
+  const std::size_t m = thresholds.size(), n = r.size();
+  c.viscous = ext.viscous.has_value();
+  c.offset = ext.offset.has_value();
+  c.inertia = ext.inertia.has_value();
+  const std::size_t p = m + c.viscous + c.offset + c.inertia;
+  c.a.resize(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(p));
+  c.lo = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p));
+  c.hi = Eigen::VectorXd::Constant(static_cast<Eigen::Index>(p),
+                                   std::numeric_limits<double>::infinity());
+  MaxwellSlipParameters<double> unit;
+  unit.stiffness.assign(m, 1.0);
+  unit.threshold = thresholds;
+  Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(unit), ext, 2);
+  model.base().reset(deflections_from_relative(unit, rho));
+  const bool lag = ext.frictional_lag.has_value();
+  for_each_extended_step(
+      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
+      std::span<const double>(r.normal), &windows,
+      [&](std::size_t k, const ExtendedMotion<double>& ctx, double) {
+        const auto row = static_cast<Eigen::Index>(k);
+        const auto d = model.base().deflections();
+        for (std::size_t i = 0; i < m; ++i) c.a(row, static_cast<Eigen::Index>(i)) = d[i];
+        Eigen::Index j = static_cast<Eigen::Index>(m);
+        if (c.viscous) c.a(row, j++) = lag ? model.lagged_velocity() : ctx.piece_velocity;
+        if (c.offset) c.a(row, j++) = 1.0;
+        if (c.inertia) c.a(row, j++) = ctx.acceleration;
+      });
+  if (c.offset) {
+    const Eigen::Index j = static_cast<Eigen::Index>(m + c.viscous);
+    c.lo[j] = -std::numeric_limits<double>::infinity();
+  }
+}
+
+}  // namespace
+
+ProfileScales profile_scales(const Record& r, const ExtendedSlipRun& run, double reference_force) {
+  ProfileScales s;
+  const std::size_t n = r.size();
+  s.reference_force = reference_force;
+  s.duration = std::max(r.time.back() - r.time.front(), 1e-12);
+  s.sample_period = n > 1 ? s.duration / static_cast<double>(n - 1) : 1.0;
+  std::vector<double> sliding, moving, steps;
+  for (std::size_t k = 1; k < n; ++k) {
+    const double v = std::abs(run.velocity[k]), dx = std::abs(r.displacement[k] - r.displacement[k - 1]);
+    if (dx > 0) {
+      moving.push_back(v);
+      steps.push_back(dx);
+    }
+    if (run.sliding[k] && v > 0) sliding.push_back(v);
+  }
+  s.sliding_speed_95 = quantile(sliding.size() >= 20 ? sliding : moving, 0.95);
+  s.sample_travel = quantile(steps, 0.5);
+  const auto [lo, hi] = std::minmax_element(r.displacement.begin(), r.displacement.end());
+  s.travel = *hi - *lo;
+  // Reversals with a hysteresis of three resolution steps (identification.hpp's detector).
+  const double h = std::max(3 * displacement_resolution(r.displacement), 1e-4 * s.travel);
+  const std::vector<std::size_t> turns = turning_points(r.displacement, h);
+  // Between extremes only: the detector also returns the first and the last sample.
+  s.reversal_interval = s.duration;
+  for (std::size_t i = 2; i + 1 < turns.size(); ++i)
+    s.reversal_interval = std::min(s.reversal_interval, r.time[turns[i]] - r.time[turns[i - 1]]);
+  return s;
+}
+
+ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>& base,
+                            const std::vector<double>& rho, const ExtensionParameters<double>& ext,
+                            Effect profiled, const DerivativeWindows& windows,
+                            const ProfileScales& scales) {
+  FRICTION_CHECK(r.has_force() && r.size() >= 3, "profile_start: the record needs force");
+  ExtensionParameters<double> point = ext;
+  if (!(point.reference_force > 0)) point.reference_force = base.sliding_force();
+  if (point.normal_load && r.has_normal()) {
+    const double mean = std::accumulate(r.normal.begin(), r.normal.end(), 0.0) /
+                        static_cast<double>(r.size());
+    point.normal_load->friction_coefficient = point.reference_force / mean;
+  }
+  ProfileScales s = scales;
+  s.reference_force = point.reference_force;
+  const std::vector<ProfileAxis> axes = profile_axes(profiled, s);
+  const Eigen::Map<const Eigen::VectorXd> f(r.force.data(), static_cast<Eigen::Index>(r.size()));
+
+  ProfiledStart best;
+  best.rss = std::numeric_limits<double>::infinity();
+  Columns c;
+  detail::BoxLeastSquaresStorage storage;
+  std::vector<std::size_t> at(axes.size(), 0);
+  for (;;) {
+    for (std::size_t a = 0; a < axes.size(); ++a)
+      point.for_each_parameter([&](Effect e, std::string_view name, double& v) {
+        if (e == profiled && name == axes[a].parameter) v = axes[a].values[at[a]];
+      });
+    try {
+      point.validate();
+      fill_columns(r, base.threshold, rho, point, windows, c);
+      const Eigen::VectorXd z =
+          detail::box_least_squares(c.a, f, c.lo, c.hi, nullptr, &storage);
+      const double rss = (f - c.a * z).squaredNorm();
+      ++best.points;
+      if (rss < best.rss) {
+        best.rss = rss;
+        best.ext = point;
+        best.base = base;
+        const std::size_t m = base.size();
+        double largest = 0;
+        for (std::size_t i = 0; i < m; ++i) largest = std::max(largest, z[static_cast<Eigen::Index>(i)]);
+        // An operator the data want at zero keeps a negligible positive stiffness (it is fitted
+        // in log k).
+        for (std::size_t i = 0; i < m; ++i)
+          best.base.stiffness[i] =
+              std::max(z[static_cast<Eigen::Index>(i)], 1e-9 * std::max(largest, 1e-300));
+        Eigen::Index j = static_cast<Eigen::Index>(m);
+        if (c.viscous) best.ext.viscous->viscous = z[j++];
+        if (c.offset) best.ext.offset->offset = z[j++];
+        if (c.inertia) best.ext.inertia->mass = z[j++];
+      }
+    } catch (const InvalidParameter&) {
+      // A grid point outside a piece's domain (e.g. a level that vanishes): skipped.
+    }
+    std::size_t a = 0;
+    while (a < axes.size() && ++at[a] == axes[a].values.size()) at[a++] = 0;
+    if (a == axes.size()) break;
+  }
+  FRICTION_CHECK(std::isfinite(best.rss), "profile_start: no grid point of ", effect_name(profiled),
+                 " gave a usable model");
+  return best;
+}
+
+}  // namespace friction
