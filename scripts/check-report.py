@@ -112,8 +112,10 @@ class Browser:
         for domain in ("Page.enable", "Runtime.enable", "Log.enable", "Network.enable"):
             self.call(domain)
         self.events.clear()
+        start = time.monotonic()
         self.call("Page.navigate", {"url": url})
         self.wait_for("Page.loadEventFired")
+        return time.monotonic() - start
 
     def evaluate(self, expression):
         r = self.call("Runtime.evaluate", {"expression": expression, "returnByValue": True})
@@ -365,6 +367,10 @@ def main():
                     help="marks a panel needs (bar charts: 2)")
     ap.add_argument("--screenshot", help="save the top of the page (1280 x 1400) as a PNG")
     ap.add_argument("--screenshot-height", type=int, default=1400)
+    ap.add_argument("--screenshot-scale", type=float, default=1.0)
+    ap.add_argument("--screenshot-from", help="id of the element the screenshot starts at")
+    ap.add_argument("--timing", action="store_true",
+                    help="also time the layout and paint of the whole page")
     ap.add_argument("--chromium", default=os.environ.get("CHROMIUM", "chromium"))
     ap.add_argument("--width", type=int, default=1280)
     args = ap.parse_args()
@@ -382,11 +388,24 @@ def main():
     started = time.monotonic()
     browser = Browser(args.chromium, args.width)
     try:
-        browser.open(url)
+        loaded = browser.open(url)
+        painted = None
+        if args.timing:
+            # Layout and paint of the whole page: a viewport as tall as the page, then two
+            # animation frames (the second starts once the first has been painted).
+            height = browser.evaluate("document.documentElement.scrollHeight")
+            t0 = time.monotonic()
+            browser.call("Emulation.setDeviceMetricsOverride",
+                         {"width": args.width, "height": min(height, 16000),
+                          "deviceScaleFactor": 1, "mobile": False})
+            browser.call("Runtime.evaluate", {
+                "expression": "new Promise(r => requestAnimationFrame(() => "
+                              "requestAnimationFrame(() => r(1))))",
+                "awaitPromise": True}, timeout=300)
+            painted = time.monotonic() - t0
         browser.call("Emulation.setDeviceMetricsOverride",
                      {"width": args.width, "height": 900, "deviceScaleFactor": 1,
                       "mobile": False})
-        loaded = time.monotonic() - started
         dom = browser.evaluate("document.documentElement.outerHTML")
         geometry = browser.evaluate(GEOMETRY)
         shots = {}
@@ -400,10 +419,17 @@ def main():
                          "scale": 1}})
             shots[(g["id"], g["panel"])] = base64.b64decode(r["data"])
         if args.screenshot:
+            top = 0
+            if args.screenshot_from:
+                top = browser.evaluate(
+                    "(() => { const e = document.getElementById(%s); return e ? "
+                    "e.getBoundingClientRect().top + window.scrollY : 0; })()"
+                    % json.dumps(args.screenshot_from))
             r = browser.call("Page.captureScreenshot", {
                 "format": "png", "captureBeyondViewport": True,
-                "clip": {"x": 0, "y": 0, "width": args.width,
-                         "height": min(args.screenshot_height, geometry["height"]), "scale": 1}})
+                "clip": {"x": 0, "y": top, "width": args.width,
+                         "height": min(args.screenshot_height, geometry["height"] - top),
+                         "scale": args.screenshot_scale}})
             with open(args.screenshot, "wb") as f:
                 f.write(base64.b64decode(r["data"]))
         # Let late messages arrive (rendering errors are logged as the page paints).
@@ -476,8 +502,9 @@ def main():
                                                         / max(q.get("ink", (0, 1))[1], 1))
                           for q in p["panels"])
         print("  %-32s %-11s %s" % (p["id"], p["kind"], marks))
-    print("%s: %d plots, %d bytes, loaded in %.1f s, checked in %.1f s"
+    print("%s: %d plots, %d bytes, loaded in %.2f s%s, checked in %.1f s"
           % (args.report, len(parser.plots), os.path.getsize(path), loaded,
+             "" if painted is None else ", whole page laid out and painted in %.2f s" % painted,
              time.monotonic() - started))
     if failures:
         for f in failures:
