@@ -58,6 +58,7 @@ class Browser:
             chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
             "--no-first-run", "--disable-background-networking", "--disable-component-update",
             "--disable-sync", "--disable-extensions", "--hide-scrollbars", "--mute-audio",
+            "--disable-dev-shm-usage",
             "--user-data-dir=" + self.user_data, "--remote-debugging-pipe",
             "--window-size=%d,900" % width, "about:blank",
         ]

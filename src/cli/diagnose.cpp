@@ -88,7 +88,8 @@ std::vector<double> free_run(const AnyModel& model, const Record& r) {
 // The report: the baseline and the final model on both records, and one panel per finding.
 report::Document diagnose_report(const Json& doc, const Diagnosis& d, const Record& est,
                                  const Record& val) {
-  FRICTION_CHECK(d.baseline_model && d.final_model, "diagnose: no baseline or final model");
+  FRICTION_CHECK_AS(NumericalError, d.baseline_model && d.final_model,
+                    "diagnose: no baseline or final model to report");
   report::DiagnoseFits fits;
   fits.baseline_estimation = free_run(*d.baseline_model, est);
   fits.baseline_validation = free_run(*d.baseline_model, val);
