@@ -333,8 +333,8 @@ TEST(ReportFiles, A100kSampleDiagnoseReportWithFindingPanelsStaysUnder3MB) {
   doc["final"] = {{"model", {{"type", "maxwell-slip"}}},
                   {"validation", {{"rss_sss_percent", 0.1}}}};
   const char* effects[] = {
-      "viscous", "stribeck", "frictional-lag", "offset",         "position-dependence",
-      "drift",   "inertia",  "delay",          "nonlocal-memory"};
+      "viscous", "stribeck", "frictional-lag", "offset",          "position-dependence",
+      "drift",   "inertia",  "delay",          "nonlocal-memory", "normal-load"};
   std::vector<FindingPanelInput> panels;
   for (const char* e : effects) {
     doc["findings"].push_back({{"effect", e},
@@ -358,7 +358,7 @@ TEST(ReportFiles, A100kSampleDiagnoseReportWithFindingPanelsStaysUnder3MB) {
   RecordProperty("bytes", std::to_string(html.size()));
   EXPECT_LT(html.size(), 3u * 1000u * 1000u);
   expect_self_contained(html);
-  expect_every_plot_has_axes_with_units(html, 9 + 2 * 7);
+  expect_every_plot_has_axes_with_units(html, 10 + 2 * 7);
   // One signature plot per finding, and the candidate that did not earn its place.
   EXPECT_EQ(plot_labels(html).size(), std::size(effects) + 2u * 7u);
   EXPECT_NE(html.find("BIC does not fall"), std::string::npos);
