@@ -219,7 +219,6 @@ def path_vertices(d):
     number where a coordinate belongs (NaN, inf) gives a non-finite vertex."""
     tokens = re.findall(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[A-Za-z]+", d)
     out, command, x, y, start = [], "M", 0.0, 0.0, (0.0, 0.0)
-    args = []
 
     def num(t):
         try:
