@@ -4,9 +4,12 @@
 #   1. builds build/ if needed (configures it like setup.sh when it does not exist),
 #   2. checks that every compile of the project's own sources has -Wall -Wextra -Wpedantic -Werror,
 #   3. runs the GoogleTest suite with ctest,
-#   4. install test: installs into a temporary prefix, builds examples/cmake-project against it
+#   4. the browser check of the HTML reports (scripts/check-reports.sh): the reports of compare
+#      and diagnose on data/ rendered by headless Chromium, and the checker shown to fail on
+#      deliberately broken reports,
+#   5. install test: installs into a temporary prefix, builds examples/cmake-project against it
 #      with find_package(friction CONFIG REQUIRED) and runs it,
-#   5. the suite again under AddressSanitizer + UndefinedBehaviorSanitizer (build-asan/), except
+#   6. the suite again under AddressSanitizer + UndefinedBehaviorSanitizer (build-asan/), except
 #      the tests labelled "long" (the statistical studies: many fits of the same code paths, which
 #      the Release pass runs and which would take most of CI's time under ASan).
 #      FRICTION_SKIP_SANITIZERS=1 skips this pass (CI always runs it).
@@ -98,6 +101,7 @@ else
 fi
 timed "warning flags" check_warning_flags
 timed "ctest ($FRICTION_BUILD_DIR)" run_ctest "$FRICTION_BUILD_DIR"
+timed "browser check of the reports" bash scripts/check-reports.sh
 timed "install test" install_test
 timed "sanitizer pass ($ASAN_BUILD_DIR)" sanitizer_pass
 say "All tests passed ($((SECONDS - total_start))s)"

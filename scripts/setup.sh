@@ -19,13 +19,30 @@ CLI="$FRICTION_BUILD_DIR/apps/friction-identify"
 main_job() {
   # The paper's comparison on the bundled pair (data/make-data.sh remakes it): LG, NLR and DNLRX
   # identified on data/estimation.csv, each validated on data/validation.csv.  The document with
-  # the identified models goes to out/compare.json; the table is printed.
+  # the identified models goes to out/compare.json, the report (plots, for people) to
+  # out/compare.html; the table is printed.
   local f
   for f in data/estimation.csv data/validation.csv; do
     [[ -f "$f" ]] || die "$f is missing"
   done
   mkdir -p out
-  "$CLI" compare --data data/estimation.csv --validate data/validation.csv --out out/compare.json
+  "$CLI" compare --data data/estimation.csv --validate data/validation.csv --out out/compare.json \
+    --report out/compare.html
+  # What the basic model gets wrong there: diagnose names the effects (the record holds Stribeck
+  # friction, frictional lag and viscous friction) and extends the model; document in
+  # out/diagnose.json, report in out/diagnose.html.  It must name at least one effect.
+  echo
+  "$CLI" diagnose --data data/estimation.csv --validate data/validation.csv \
+    --out out/diagnose.json --report out/diagnose.html
+  local named
+  named=$(python3 -c 'import json, sys
+print(" ".join(f["effect"] for f in json.load(open(sys.argv[1]))["findings"]))' out/diagnose.json)
+  [[ -n "$named" ]] || die "diagnose named no effect on data/ (out/diagnose.json)"
+  echo "diagnose named: $named"
+  echo
+  echo "Reports (open in any browser, no network needed):"
+  echo "  $FRICTION_ROOT/out/compare.html"
+  echo "  $FRICTION_ROOT/out/diagnose.html"
 }
 # ------------------------------------------------------------------------------------------------
 

@@ -7,6 +7,7 @@
 #include "commands.hpp"
 #include "friction/atomic_file.hpp"
 #include "friction/version.hpp"
+#include "report_option.hpp"
 
 namespace friction::cli {
 
@@ -88,6 +89,7 @@ void add_output_options(CLI::App& command, OutputOptions& out) {
 }
 
 int run(int argc, char** argv) {
+  set_command_line(argc, argv);
   CLI::App app{
       "friction-identify: identify friction models (LuGre, Maxwell Slip, DNLRX, GMS) "
       "from displacement-force records"};

@@ -9,13 +9,14 @@
 #include "friction/atomic_file.hpp"
 #include "friction/diagnose.hpp"
 #include "progress.hpp"
+#include "report_option.hpp"
 
 namespace friction::cli {
 
 namespace {
 
 struct DiagnoseCliOptions {
-  std::string data, validate, baseline = "maxwell-slip", svg;
+  std::string data, validate, baseline = "maxwell-slip", svg, report;
   double holdout = 0.3;
   std::size_t max_operators = 0;
   bool no_global = false;
@@ -72,7 +73,52 @@ std::string residual_svg(const Record& val, const std::vector<double>& before,
   return s.str();
 }
 
+// The free run of one of the diagnosis' models on a record, initial state estimated there: for a
+// Maxwell Slip model with pieces the way the diagnosis scored it (extended_validation_percent),
+// otherwise the way `validate` does.
+std::vector<double> free_run(const AnyModel& model, const Record& r) {
+  if (const auto* m = std::get_if<Extended<MaxwellSlip<double>>>(&model.variant())) {
+    std::vector<double> sim;
+    extended_validation_percent(m->base().parameters(), m->extensions(), r, &sim);
+    return sim;
+  }
+  return validate_model(model, r).simulated;
+}
+
+// The report: the baseline and the final model on both records, and one panel per finding.
+report::Document diagnose_report(const Json& doc, const Diagnosis& d, const Record& est,
+                                 const Record& val) {
+  FRICTION_CHECK_AS(NumericalError, d.baseline_model && d.final_model,
+                    "diagnose: no baseline or final model to report");
+  report::DiagnoseFits fits;
+  fits.baseline_estimation = free_run(*d.baseline_model, est);
+  fits.baseline_validation = free_run(*d.baseline_model, val);
+  fits.final_estimation = free_run(*d.final_model, est);
+  fits.final_validation = free_run(*d.final_model, val);
+  fits.baseline_label = "baseline (" + d.baseline_model->type() + ")";
+  fits.final_label = d.findings.empty() ? "final (= baseline)" : "final";
+  // Per-finding panels: the diagnosis keeps only the baseline and the final model, so each
+  // finding's signature is shown from the baseline to the final model (exactly that finding's
+  // step when there is one finding).  Once the diagnosis keeps each step's model, `before` and
+  // `after` become that step's runs.
+  std::vector<report::FindingPanelInput> panels;
+  const Json& findings = doc["findings"];
+  for (std::size_t k = 0; k < findings.size(); ++k) {
+    report::FindingPanelInput in;
+    in.effect = findings[k].value("effect", std::string());
+    in.validation = &val;
+    in.before = fits.baseline_validation;
+    in.after = fits.final_validation;
+    in.before_label = "baseline";
+    in.after_label = findings.size() == 1 ? "after" : "final (all findings)";
+    in.finding = findings[k];
+    panels.push_back(std::move(in));
+  }
+  return report::diagnose_report(doc, est, val, fits, panels, run_info());
+}
+
 int run_diagnose(const DiagnoseCliOptions& o) {
+  check_report_path(o.report);
   Record all = load_record(o.data, o.input, /*require_force=*/true);
   std::vector<std::string> warnings = all.conditioning.warnings;
   Record est, val;
@@ -131,6 +177,8 @@ int run_diagnose(const DiagnoseCliOptions& o) {
     }
   }
 
+  if (!o.report.empty()) write_report_file(o.report, diagnose_report(doc, d, est, val));
+
   if (o.output.format == "json") {
     emit(o.output, doc.dump(2) + "\n");
     return kExitOk;
@@ -166,6 +214,7 @@ Action register_diagnose(CLI::App& root) {
   c->add_option("--svg", o->svg, "Write a plot of the residual against velocity (before/after)");
   add_input_options(*c, o->input);
   add_output_options(*c, o->output);
+  add_report_option(*c, o->report);
   return [o] { return run_diagnose(*o); };
 }
 

@@ -2,12 +2,14 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 #include <sstream>
 
 #include "commands.hpp"
 #include "friction/methods.hpp"
 #include "progress.hpp"
+#include "report_option.hpp"
 
 namespace friction::cli {
 
@@ -161,7 +163,7 @@ void print_report(std::ostream& os, const IdentifiedModel& m) {
 }
 
 struct IdentifyOptions {
-  std::string model;
+  std::string model, report;
   std::vector<std::string> extensions;
   std::string data, validate;
   InputOptions input;
@@ -173,6 +175,7 @@ int run_identify(const IdentifyOptions& o) {
   // A bad --extension is bad usage: reported before any file is read.
   MethodOptions method = o.method.method();
   method.extensions = parse_extension_list(o.extensions);
+  check_report_path(o.report);
   Records rs = load_records(o.data, o.validate, 0.3, /*hold_out_when_missing=*/false, o.input);
   Json doc = new_document("identify");
   add_warnings(doc, rs.warnings);
@@ -197,6 +200,16 @@ int run_identify(const IdentifyOptions& o) {
   if (rs.has_validation) {
     val = validate_model(m.model, rs.validation);
     doc["validation"] = validation_json(*val);
+  }
+  if (!o.report.empty()) {
+    // The estimation run the method reported; the validation run validate_model gave.
+    std::vector<report::RecordFit> fits;
+    fits.push_back({&rs.estimation, "estimation",
+                    m.report.estimation_simulated.size() == rs.estimation.size()
+                        ? m.report.estimation_simulated
+                        : validate_model(m.model, rs.estimation).simulated});
+    if (val) fits.push_back({&rs.validation, "validation", val->simulated});
+    write_report_file(o.report, report::fit_report(doc, fits, run_info()));
   }
   if (o.output.format == "json") {
     emit(o.output, doc.dump(2) + "\n");
@@ -224,13 +237,20 @@ int run_identify(const IdentifyOptions& o) {
   return kExitOk;
 }
 
+// The JSON of a file that load_model has already read (null when it cannot be read again).
+Json read_json_file(const std::string& path) {
+  std::ifstream in(path);
+  return Json::parse(in, nullptr, /*allow_exceptions=*/false);
+}
+
 struct ValidateOptions {
-  std::string model_file, data;
+  std::string model_file, data, report;
   InputOptions input;
   OutputOptions output;
 };
 
 int run_validate(const ValidateOptions& o) {
+  check_report_path(o.report);
   const AnyModel model = load_model(o.model_file);
   const Record r = load_record(o.data, o.input, true);
   Json doc = new_document("validate");
@@ -239,6 +259,15 @@ int run_validate(const ValidateOptions& o) {
   doc["model"] = model.to_json();
   const Validation v = validate_model(model, r);
   doc["validation"] = validation_json(v);
+  if (!o.report.empty()) {
+    Json shown = doc;
+    // An identify document carries the parameters' intervals: the report shows them.
+    const Json file = read_json_file(o.model_file);
+    if (file.is_object() && file.contains("identification"))
+      shown["identification"] = file["identification"];
+    write_report_file(o.report,
+                      report::fit_report(shown, {{&r, "validation", v.simulated}}, run_info()));
+  }
   if (o.output.format == "json") {
     emit(o.output, doc.dump(2) + "\n");
     return kExitOk;
@@ -252,7 +281,7 @@ int run_validate(const ValidateOptions& o) {
 }
 
 struct CompareOptions {
-  std::string data, validate;
+  std::string data, validate, report;
   double holdout = 0.3;
   std::vector<std::string> methods{"LG", "NLR", "DNLRX"};
   InputOptions input;
@@ -261,11 +290,13 @@ struct CompareOptions {
 };
 
 int run_compare(const CompareOptions& o) {
+  check_report_path(o.report);
   Records rs = load_records(o.data, o.validate, o.holdout, /*hold_out_when_missing=*/true, o.input);
   Json doc = new_document("compare");
   add_warnings(doc, rs.warnings);
   doc["data"] = rs.data;
   doc["methods"] = Json::array();
+  std::vector<report::MethodFit> fits;
   Progress progress;
   for (const auto& name : o.methods) {
     const std::string type = method_type(name);
@@ -288,6 +319,12 @@ int run_compare(const CompareOptions& o) {
       row["validation"] = validation_json(v);
       row["identification"] = report_to_json(m.report);
       row["warnings"] = m.report.warnings;
+      if (!o.report.empty())
+        fits.push_back({method_name(type),
+                        m.report.estimation_simulated.size() == rs.estimation.size()
+                            ? m.report.estimation_simulated
+                            : validate_model(m.model, rs.estimation).simulated,
+                        v.simulated});
     } catch (const std::exception& e) {
       row["error"] = e.what();
       std::cerr << "error: " << method_name(type) << ": " << e.what() << "\n";
@@ -301,6 +338,9 @@ int run_compare(const CompareOptions& o) {
   for (const auto& row : doc["methods"]) any = any || !row.contains("error");
   // No result at all is a failure (exit 1); a failed method among others is a row with an error.
   const int status = any ? kExitOk : kExitData;
+  if (any && !o.report.empty())
+    write_report_file(o.report,
+                      report::compare_report(doc, rs.estimation, rs.validation, fits, run_info()));
   if (o.output.format == "json") {
     emit(o.output, doc.dump(2) + "\n");
     return status;
@@ -357,6 +397,7 @@ Action register_identify(CLI::App& root) {
   add_method_options(*c, o->method);
   add_input_options(*c, o->input);
   add_output_options(*c, o->output);
+  add_report_option(*c, o->report);
   return [o] { return run_identify(*o); };
 }
 
@@ -370,6 +411,7 @@ Action register_validate(CLI::App& root) {
   c->add_option("--data", o->data, "Record (CSV)")->required();
   add_input_options(*c, o->input);
   add_output_options(*c, o->output);
+  add_report_option(*c, o->report);
   return [o] { return run_validate(*o); };
 }
 
@@ -389,6 +431,7 @@ Action register_compare(CLI::App& root) {
   add_method_options(*c, o->method);
   add_input_options(*c, o->input);
   add_output_options(*c, o->output);
+  add_report_option(*c, o->report);
   return [o] { return run_compare(*o); };
 }
 
