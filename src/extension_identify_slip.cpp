@@ -86,9 +86,14 @@ ExtendedSlipFit add_pieces(const Record& r, ExtendedSlipFit cur, const std::vect
   return cur;
 }
 
-// The force with the fitted pieces taken out: added terms subtracted, divided by the level along
-// the fitted model's run.
+// The force with the fitted pieces taken out: added terms subtracted, the asymmetry's shift of the
+// slip limits too (a L F0: exact while the level is constant, extensions.hpp), divided by the level
+// along the fitted model's run.  The restart's order selection runs on it: on the force as
+// recorded, an unmodelled asymmetry or offset dominates the misfit and BIC stops at too few
+// operators (3 for a 10-element system on a discovery-study record, 5 times the floor).
 std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit& cur) {
+  const double f0 = cur.ext.reference_force > 0 ? cur.ext.reference_force : cur.base.sliding_force();
+  const double asymmetry = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(cur.base), cur.ext, 2);
   model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho)));
   std::vector<double> corrected(r.size());
@@ -101,6 +106,7 @@ std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit&
         if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
         if (cur.ext.offset) added += cur.ext.offset->offset;
         if (cur.ext.inertia) added += cur.ext.inertia->mass * c.acceleration;
+        added += asymmetry * model.level() * f0;
         corrected[k] = (r.force[k] - added) / std::max(model.level(), 0.05);
       });
   return corrected;

@@ -798,8 +798,9 @@ inline PieceStart start_from_regression(Effect e, const RegressionSignals& s) {
 // every point, so they need no start at all (extension_profile.cpp).  The ranges:
 //   stribeck             velocity 1 % to 100 % of the 95th-percentile sliding speed (9 points,
 //                        log), exponent 0.5-2.5 (5), static 1.05-2.6 F0 (6);
-//   position-dependence  wavelength from 10 samples' travel to a third of the travel (14, log),
-//                        phase (8), amplitude 2-15 % of F0 (3);
+//   position-dependence  wavelength from 10 samples' travel to the whole travel (16, log; a third
+//                        of it missed a wavelength of 0.35 travel on a study record), phase (8),
+//                        amplitude 2-15 % of F0 (3);
 //   drift                +-(0.02-0.6) per duration (8) and 0;
 //   asymmetry            +-(0.05-0.3) (8);
 //   delay                +-0.1 of the shortest interval between reversals (21, linear): a
@@ -864,7 +865,7 @@ inline std::vector<ProfileAxis> profile_axes(Effect e, const ProfileScales& s) {
     case Effect::position_dependence: {
       std::vector<double> phase;
       for (int i = 0; i < 8; ++i) phase.push_back(2 * M_PI * i / 8);
-      return {{"wavelength", log_grid(10 * s.sample_travel, s.travel / 3, 14)},
+      return {{"wavelength", log_grid(10 * s.sample_travel, s.travel, 16)},
               {"phase", phase},
               {"amplitude", {0.02 * f0, 0.06 * f0, 0.15 * f0}}};
     }

@@ -362,7 +362,8 @@ FileFormat draw_format(Rng& rng, double travel, double fc, bool with_normal) {
 void set_floors(StudyRecord& r) {
   const Trace& t = r.trace_validation;
   const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;
-  const std::vector<double> reachable = reachable_force(r.system, t, nv, r.validation);
+  const Derivatives estimated = best_local_derivatives(t);
+  const std::vector<double> reachable = reachable_force(r.system, t, nv, r.validation, &estimated);
   double noise = 0, gap = 0, total = 0;
   for (std::size_t k = 0; k < t.force.size(); ++k) {
     noise += (t.force[k] - t.clean[k]) * (t.force[k] - t.clean[k]);

@@ -82,9 +82,11 @@ struct StudyRecord {
   /// 100 N sigma^2 / sum F^2 on the validation record: the error a perfect model reaches.
   double true_floor_percent = 0;
   /// 100 sum (F - F_reachable)^2 / sum F^2 on the validation record (reachable_force): the error
-  /// of the true system driven by the recorded displacement, which no model fed the measured
-  /// displacement can beat by more than chance.  Above the noise floor where the encoder's steps
-  /// are a visible force in presliding (k q against the force noise).
+  /// of the true system driven by the recorded displacement, its speed-dependent terms fed the
+  /// velocity and acceleration that the best fixed window of a local quadratic estimates from it
+  /// (best_local_derivatives).  What a model fed the measured displacement can reach; above the
+  /// noise floor where the encoder's steps are a visible force in presliding (k q against the force
+  /// noise) or a large m a turns the acceleration's estimation error into force.
   double reachable_floor_percent = 0;
   FileFormat format;
   /// Features that decide whether a pair of look-alike effects can be told apart.

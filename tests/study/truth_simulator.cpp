@@ -276,8 +276,64 @@ Trace simulate(const System& sys, const Excitation& motion, const NormalProgram*
   return out;
 }
 
+namespace {
+
+// Local quadratic fit over the 2m+1 samples around k (slid inside the record), differentiated at
+// t_k: order 1 the velocity, 2 the acceleration.
+double local_quadratic(const std::vector<double>& t, const std::vector<double>& x, std::size_t k,
+                       std::size_t m, int order) {
+  const std::size_t n = x.size(), w = std::min(2 * m + 1, n);
+  std::size_t lo = k >= m ? k - m : 0;
+  if (lo + w > n) lo = n - w;
+  const double ts = (t[n - 1] - t[0]) / static_cast<double>(n - 1);
+  double s[5] = {0, 0, 0, 0, 0}, r[3] = {0, 0, 0};
+  for (std::size_t i = lo; i < lo + w; ++i) {
+    const double tau = (t[i] - t[k]) / ts, y = x[i] - x[k];
+    s[0] += 1, s[1] += tau, s[2] += tau * tau, s[3] += tau * tau * tau,
+        s[4] += tau * tau * tau * tau;
+    r[0] += y, r[1] += y * tau, r[2] += y * tau * tau;
+  }
+  // Cramer's rule on the 3 x 3 normal equations.
+  auto det3 = [](double a, double b, double c, double d, double e, double f, double g, double h,
+                 double i) {
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
+  };
+  const double d = det3(s[0], s[1], s[2], s[1], s[2], s[3], s[2], s[3], s[4]);
+  if (order == 1) return det3(s[0], r[0], s[2], s[1], r[1], s[3], s[2], r[2], s[4]) / d / ts;
+  return 2 * det3(s[0], s[1], r[0], s[1], s[2], r[1], s[2], s[3], r[2]) / d / (ts * ts);
+}
+
+double interpolate(const std::vector<double>& y, double s) {
+  if (s <= 0) return y.front();
+  const auto i = static_cast<std::size_t>(std::floor(s));
+  if (i + 1 >= y.size()) return y.back();
+  const double w = s - static_cast<double>(i);
+  return (1 - w) * y[i] + w * y[i + 1];
+}
+
+}  // namespace
+
+Derivatives best_local_derivatives(const Trace& t) {
+  Derivatives best;
+  const std::size_t n = t.position.size();
+  double best_v = INFINITY, best_a = INFINITY;
+  std::vector<double> v(n), a(n);
+  for (std::size_t m = 1; m <= 40 && 2 * m + 1 <= n; ++m) {
+    double ev = 0, ea = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      v[k] = local_quadratic(t.time, t.position, k, m, 1);
+      a[k] = local_quadratic(t.time, t.position, k, m, 2);
+      ev += (v[k] - t.velocity[k]) * (v[k] - t.velocity[k]);
+      ea += (a[k] - t.acceleration[k]) * (a[k] - t.acceleration[k]);
+    }
+    if (ev < best_v) best_v = ev, best.v = v, best.velocity_window = static_cast<int>(m);
+    if (ea < best_a) best_a = ea, best.a = a, best.acceleration_window = static_cast<int>(m);
+  }
+  return best;
+}
+
 std::vector<double> reachable_force(const System& sys, const Trace& t, const NormalProgram* normal,
-                                    const Measurement& m) {
+                                    const Measurement& m, const Derivatives* estimated) {
   const Effects& fx = sys.effects;
   const double delay = fx.delay.value_or(0.0), asym = fx.asymmetry.value_or(0.0);
   const std::size_t n = t.position.size(), n_el = sys.elements.size();
@@ -297,6 +353,26 @@ std::vector<double> reachable_force(const System& sys, const Trace& t, const Nor
   const auto first = std::min(n - 1, static_cast<std::size_t>(std::ceil(delay / ts - 1e-9)));
   std::vector<double> f(t.element_force.begin() + static_cast<long>(first * n_el),
                         t.element_force.begin() + static_cast<long>((first + 1) * n_el));
+  // The felt velocity and the acceleration at the motion instants: exact, or estimated from the
+  // recorded displacement (shifted by the delay, and through the lag when there is one; the lag
+  // starts from its true state).
+  std::vector<double> felt = t.felt_velocity, accel = t.motion_acceleration;
+  if (estimated) {
+    const double tau_lag = fx.lag_time.value_or(0.0);
+    double previous = 0;
+    for (std::size_t k = first; k < n; ++k) {
+      const double s = static_cast<double>(k) - delay / ts;
+      const double v = interpolate(estimated->v, s);
+      accel[k] = interpolate(estimated->a, s);
+      if (tau_lag > 0 && k > first) {
+        const double e = std::exp(-ts / tau_lag), slope_tau = (v - previous) * tau_lag / ts;
+        felt[k] = v - slope_tau + (felt[k - 1] - previous + slope_tau) * e;
+      } else if (!(tau_lag > 0)) {
+        felt[k] = v;
+      }
+      previous = v;
+    }
+  }
   std::vector<double> out(n);
   for (std::size_t k = 0; k < n; ++k) {
     if (k < first) {
@@ -305,7 +381,7 @@ std::vector<double> reachable_force(const System& sys, const Trace& t, const Nor
     }
     if (k > first) {
       const double tau = static_cast<double>(k) * ts - delay;
-      const double l = sys.coulomb * slip_level(sys, tau, delay, x[k], t.felt_velocity[k], normal);
+      const double l = sys.coulomb * slip_level(sys, tau, delay, x[k], felt[k], normal);
       for (std::size_t i = 0; i < n_el; ++i) {
         const double a_i = sys.elements[i].share * l;
         f[i] = std::clamp(f[i] + sys.elements[i].stiffness * (x[k] - x[k - 1]), -a_i * (1 - asym),
@@ -314,8 +390,8 @@ std::vector<double> reachable_force(const System& sys, const Trace& t, const Nor
     }
     double force = 0;
     for (double fi : f) force += fi;
-    if (fx.viscous) force += *fx.viscous * t.felt_velocity[k];
-    if (fx.mass) force += *fx.mass * t.motion_acceleration[k];
+    if (fx.viscous) force += *fx.viscous * felt[k];
+    if (fx.mass) force += *fx.mass * accel[k];
     if (fx.offset) force += *fx.offset;
     out[k] = force;
   }

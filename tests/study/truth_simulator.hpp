@@ -166,7 +166,21 @@ Trace simulate(const System& system, const Excitation& motion, const NormalProgr
 /// Its error against the recorded force is the floor a model driven by the measured
 /// displacement can reach: force noise plus what the encoder's steps do to the elements.
 std::vector<double> reachable_force(const System& system, const Trace& trace,
-                                    const NormalProgram* normal, const Measurement& measurement);
+                                    const NormalProgram* normal, const Measurement& measurement,
+                                    const struct Derivatives* estimated = nullptr);
+
+/// Velocity and acceleration at the sample instants, estimated from the recorded displacement.
+struct Derivatives {
+  std::vector<double> v, a;
+  int velocity_window = 0, acceleration_window = 0;  ///< half widths used
+};
+
+/// Local quadratic fits over 2m+1 samples (this simulator's own differentiator), with the half
+/// widths that minimise the RMS error against the exact v(t_k), a(t_k) (an oracle: the best any
+/// fixed window of this family does on this record).  With `estimated`, reachable_force uses these
+/// instead of the exact values: a model must estimate them from the measured displacement too,
+/// and where a large m a dominates, the exact acceleration would set a floor no model reaches.
+Derivatives best_local_derivatives(const Trace& trace);
 
 /// Root mean square of a - c b with c the least-squares scale (the part of a that a change of
 /// level alone cannot explain).  `scale_free` false: RMS of a - b.
