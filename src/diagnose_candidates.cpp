@@ -8,6 +8,7 @@
 
 #include "diagnose_stages.hpp"
 #include "friction/identification.hpp"
+#include "friction/noise_colour.hpp"
 
 namespace friction::diagnose_detail {
 
@@ -66,6 +67,7 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
     t.fit.verdict.fitted = false;
     return t;
   }
+  const double phi = residual_phi(c, t.result.base, t.result.ext, t.result.rho);
   t.fit.extensions = t.result.ext;
   t.fit.base = t.result.base;
   t.fit.extra_parameters = extra_parameters(start, s.ext);
@@ -73,11 +75,11 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
   t.fit.estimation_percent = percent(c.est.force, t.result.rss);
   // The validation record is only consulted (rule c) when rules a and b pass.
   t.fit.validation_percent = std::numeric_limits<double>::quiet_NaN();
-  if (accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation, s.validation - 1.0)
+  if (accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation, s.validation - 1.0, phi)
           .passes_estimation_rules())
     t.fit.validation_percent = extended_validation_percent(t.result.base, t.result.ext, c.val);
   t.fit.verdict = accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation,
-                         t.fit.validation_percent);
+                         t.fit.validation_percent, phi);
   t.fit.earns_place = t.fit.verdict.earns_place();
   t.fit.delta_bic = t.fit.verdict.delta_bic;
   t.fit.required_drop = t.fit.verdict.required;
@@ -159,14 +161,28 @@ std::vector<State> rebuild_chain(const Context& c, const State& first, const Sta
 
 }  // namespace
 
-Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double val0,
-               double val1) {
+// Rules (a) and (b) with coloured noise (section 4).  A residual whose lag-one correlation is phi
+// carries about N (1 - phi)/(1 + phi) independent samples, and p parameters fitted to it buy
+// chi2_p (1 + phi)/(1 - phi) times its variance, not chi2_p times: with the white rules, AR(1)
+// force noise at phi 0.8-0.95 let a delay or a viscous term into records that had none.  The
+// colour and the variance are those of the candidate's residual (its noise once the candidate
+// explains the rest; a larger variance where it does not, which only asks more of it), never less
+// than the white-noise estimate; a phi within 3 sampling errors of 0 gives the white rules.
+Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double val0, double val1,
+               double phi) {
   const DiagnoseOptions& o = c.options;
-  const double noise = chi2_999(p) * c.sigma * c.sigma;
+  // A lag-one correlation within 3 sampling errors of zero is white noise.
+  if (phi < 3 / std::sqrt(static_cast<double>(c.n))) phi = 0;
+  const double inflation = (1 + phi) / (1 - phi);
+  const double n_eff = std::max(static_cast<double>(c.n) / inflation, static_cast<double>(p) + 2);
+  const double variance = std::max(c.sigma * c.sigma, rss1 / static_cast<double>(c.n));
+  const double noise = chi2_999(p) * (phi > 0 ? variance * inflation : c.sigma * c.sigma);
   const double share = o.min_excess_share * std::max(rss0 - c.floor_rss, 0.0);
   const double reference = operator_reference(c, rss0);
   Verdict v;
-  v.delta_bic = bic(rss1, c.n, p) - bic(rss0, c.n, 0);
+  v.residual_colour = phi;
+  // BIC on the effective number of samples: n_eff ln(RSS1 / RSS0) + p ln(n_eff).
+  v.delta_bic = n_eff * std::log(rss1 / rss0) + static_cast<double>(p) * std::log(n_eff);
   v.required = std::max({noise, share, reference});
   v.drop = rss0 - rss1;
   v.operator_limited =
@@ -209,6 +225,15 @@ Chain forward_pass(const Context& c, const State& start, const std::vector<Effec
   return chain;
 }
 
+double residual_phi(const Context& c, const MaxwellSlipParameters<double>& base,
+                    const ExtensionParameters<double>& ext, const std::vector<double>& rho) {
+  const ExtendedSlipRun run =
+      run_extended_slip(base, ext, deflections_from_relative(base, rho), c.est);
+  std::vector<double> e(c.est.size());
+  for (std::size_t k = 0; k < e.size(); ++k) e[k] = c.est.force[k] - run.force[k];
+  return residual_colour(e).phi;
+}
+
 Chain backward_pass(const Context& c, Chain chain) {
   if (!c.options.backward_pass || chain.states.back().order.size() < 2) return chain;
   State full = chain.states.back();
@@ -220,7 +245,7 @@ Chain backward_pass(const Context& c, Chain chain) {
     const double v_without = extended_validation_percent(f.base, f.ext, c.val);
     if (f.ok) {
       const Verdict v = accept(c, f.rss, full.rss, extra_parameters(full.ext, without), v_without,
-                               full.validation);
+                               full.validation, residual_phi(c, full.base, full.ext, full.rho));
       if (!v.earns_place()) {
         chain.warnings.push_back("backward pass removed " + std::string(effect_name(e)) + ": " +
                                  v.to_text());

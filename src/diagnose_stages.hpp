@@ -88,7 +88,12 @@ struct Tried {
 
 /// The rule of section 4: from RSS0 to RSS1 with p extra parameters, validation val0 -> val1 (NaN:
 /// not evaluated).
-Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double val0, double val1);
+Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double val0, double val1,
+               double phi = 0);
+
+/// AR(1) coefficient of the estimation residual of a Maxwell Slip model with pieces.
+double residual_phi(const Context& c, const MaxwellSlipParameters<double>& base,
+                    const ExtensionParameters<double>& ext, const std::vector<double>& rho);
 
 /// Every candidate of `pool` not yet in `s`, fitted on top of `s` (independent fits), with the
 /// nested checks applied.

@@ -40,8 +40,8 @@ ExtendedSlipRun run_extended_slip(const MaxwellSlipParameters<double>& base,
   out.velocity.resize(n);
   out.acceleration.resize(n);
   for_each_extended_step(model, std::span<const double>(r.time),
-                         std::span<const double>(r.displacement),
-                         std::span<const double>(r.normal), nullptr,
+                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
+                         nullptr,
                          [&](std::size_t k, const ExtendedMotion<double>& c, double force) {
                            out.force[k] = force;
                            out.sliding[k] = model.base().sliding(model.level(), asymmetry) ? 1 : 0;
@@ -63,8 +63,8 @@ struct ExtendedCost {
   const Record* record;
   std::size_t operators;
   ExtensionParameters<double> pieces;
-  double scale;                // 1 / rms(F)
-  DerivativeWindows windows;   // the record's, computed once
+  double scale;               // 1 / rms(F)
+  DerivativeWindows windows;  // the record's, computed once
 
   template <typename T>
   bool operator()(T const* const* p, T* residual) const {

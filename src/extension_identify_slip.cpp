@@ -23,11 +23,11 @@ struct ProfileContext {
 };
 
 ProfileContext profile_context(const Record& r, const ExtendedSlipFit& cur) {
-  return {record_derivative_windows(r.time, r.displacement),
-          profile_scales(r,
-                         run_extended_slip(cur.base, cur.ext,
-                                           deflections_from_relative(cur.base, cur.rho), r),
-                         cur.ext.reference_force)};
+  return {
+      record_derivative_windows(r.time, r.displacement),
+      profile_scales(
+          r, run_extended_slip(cur.base, cur.ext, deflections_from_relative(cur.base, cur.rho), r),
+          cur.ext.reference_force)};
 }
 
 // A fit of the current pieces and `start` (`profiled` started by its profile, the stiffnesses and
@@ -37,8 +37,7 @@ ExtendedSlipFit fit_step(const Record& r, const ExtendedSlipFit& cur,
                          const std::vector<Effect>& profiled, const ProfileContext& pc,
                          const ExtensionFitOptions& o) {
   ProfiledStart p{cur.base, start, 0, 0};
-  for (Effect e : profiled)
-    p = profile_start(r, p.base, cur.rho, p.ext, e, pc.windows, pc.scales);
+  for (Effect e : profiled) p = profile_start(r, p.base, cur.rho, p.ext, e, pc.windows, pc.scales);
   const Effect e = profiled.front();
   ExtendedSlipFit f = fit_extended_slip(r, p.base, cur.rho, p.ext, false, o.max_iterations);
   if (!f.ok)
@@ -92,23 +91,24 @@ ExtendedSlipFit add_pieces(const Record& r, ExtendedSlipFit cur, const std::vect
 // recorded, an unmodelled asymmetry or offset dominates the misfit and BIC stops at too few
 // operators (3 for a 10-element system on a discovery-study record, 5 times the floor).
 std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit& cur) {
-  const double f0 = cur.ext.reference_force > 0 ? cur.ext.reference_force : cur.base.sliding_force();
+  const double f0 =
+      cur.ext.reference_force > 0 ? cur.ext.reference_force : cur.base.sliding_force();
   const double asymmetry = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(cur.base), cur.ext, 2);
   model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho)));
   std::vector<double> corrected(r.size());
-  for_each_extended_step(
-      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
-      std::span<const double>(r.normal), nullptr,
-      [&](std::size_t k, const ExtendedMotion<double>& c, double) {
-        const double vl = cur.ext.frictional_lag ? model.lagged_velocity() : c.piece_velocity;
-        double added = 0;
-        if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
-        if (cur.ext.offset) added += cur.ext.offset->offset;
-        if (cur.ext.inertia) added += cur.ext.inertia->mass * c.acceleration;
-        added += asymmetry * model.level() * f0;
-        corrected[k] = (r.force[k] - added) / std::max(model.level(), 0.05);
-      });
+  for_each_extended_step(model, std::span<const double>(r.time),
+                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
+                         nullptr, [&](std::size_t k, const ExtendedMotion<double>& c, double) {
+                           const double vl =
+                               cur.ext.frictional_lag ? model.lagged_velocity() : c.piece_velocity;
+                           double added = 0;
+                           if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
+                           if (cur.ext.offset) added += cur.ext.offset->offset;
+                           if (cur.ext.inertia) added += cur.ext.inertia->mass * c.acceleration;
+                           added += asymmetry * model.level() * f0;
+                           corrected[k] = (r.force[k] - added) / std::max(model.level(), 0.05);
+                         });
   return corrected;
 }
 

@@ -5,11 +5,11 @@
 // (3.086 %) and ended at vs = 1.5e-9 m/s; an inertia started from a diluted regression ended at
 // 141 kg for ~3400 kg.  So no nonlinear parameter starts from a guess: each is started at the best
 // point of a grid over its physical range, and at every point the parameters in which the model is
-// linear -- the stiffnesses (F = sum k_i delta_i) and the added terms (viscous, offset, mass) -- are
-// solved exactly, by bounded least squares on the operators' deflections and the added terms'
+// linear -- the stiffnesses (F = sum k_i delta_i) and the added terms (viscous, offset, mass) --
+// are solved exactly, by bounded least squares on the operators' deflections and the added terms'
 // signals.  The deflections come from the model itself (for_each_extended_step with unit
-// stiffnesses), so the level effects, the asymmetry, the lag and the delay act on them exactly as in
-// the fit that follows.
+// stiffnesses), so the level effects, the asymmetry, the lag and the delay act on them exactly as
+// in the fit that follows.
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -56,18 +56,19 @@ void fill_columns(const Record& r, const std::vector<double>& thresholds,
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(unit), ext, 2);
   model.base().reset(deflections_from_relative(unit, rho));
   const bool lag = ext.frictional_lag.has_value();
-  for_each_extended_step(
-      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
-      std::span<const double>(r.normal), &windows,
-      [&](std::size_t k, const ExtendedMotion<double>& ctx, double) {
-        const auto row = static_cast<Eigen::Index>(k);
-        const auto d = model.base().deflections();
-        for (std::size_t i = 0; i < m; ++i) c.a(row, static_cast<Eigen::Index>(i)) = d[i];
-        Eigen::Index j = static_cast<Eigen::Index>(m);
-        if (c.viscous) c.a(row, j++) = lag ? model.lagged_velocity() : ctx.piece_velocity;
-        if (c.offset) c.a(row, j++) = 1.0;
-        if (c.inertia) c.a(row, j++) = ctx.acceleration;
-      });
+  for_each_extended_step(model, std::span<const double>(r.time),
+                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
+                         &windows, [&](std::size_t k, const ExtendedMotion<double>& ctx, double) {
+                           const auto row = static_cast<Eigen::Index>(k);
+                           const auto d = model.base().deflections();
+                           for (std::size_t i = 0; i < m; ++i)
+                             c.a(row, static_cast<Eigen::Index>(i)) = d[i];
+                           Eigen::Index j = static_cast<Eigen::Index>(m);
+                           if (c.viscous)
+                             c.a(row, j++) = lag ? model.lagged_velocity() : ctx.piece_velocity;
+                           if (c.offset) c.a(row, j++) = 1.0;
+                           if (c.inertia) c.a(row, j++) = ctx.acceleration;
+                         });
   if (c.offset) {
     const Eigen::Index j = static_cast<Eigen::Index>(m + c.viscous);
     c.lo[j] = -std::numeric_limits<double>::infinity();
@@ -84,7 +85,8 @@ ProfileScales profile_scales(const Record& r, const ExtendedSlipRun& run, double
   s.sample_period = n > 1 ? s.duration / static_cast<double>(n - 1) : 1.0;
   std::vector<double> sliding, moving, steps;
   for (std::size_t k = 1; k < n; ++k) {
-    const double v = std::abs(run.velocity[k]), dx = std::abs(r.displacement[k] - r.displacement[k - 1]);
+    const double v = std::abs(run.velocity[k]),
+                 dx = std::abs(r.displacement[k] - r.displacement[k - 1]);
     if (dx > 0) {
       moving.push_back(v);
       steps.push_back(dx);
@@ -113,8 +115,8 @@ ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>
   ExtensionParameters<double> point = ext;
   if (!(point.reference_force > 0)) point.reference_force = base.sliding_force();
   if (point.normal_load && r.has_normal()) {
-    const double mean = std::accumulate(r.normal.begin(), r.normal.end(), 0.0) /
-                        static_cast<double>(r.size());
+    const double mean =
+        std::accumulate(r.normal.begin(), r.normal.end(), 0.0) / static_cast<double>(r.size());
     point.normal_load->friction_coefficient = point.reference_force / mean;
   }
   ProfileScales s = scales;
@@ -135,8 +137,7 @@ ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>
     try {
       point.validate();
       fill_columns(r, base.threshold, rho, point, windows, c);
-      const Eigen::VectorXd z =
-          detail::box_least_squares(c.a, f, c.lo, c.hi, nullptr, &storage);
+      const Eigen::VectorXd z = detail::box_least_squares(c.a, f, c.lo, c.hi, nullptr, &storage);
       const double rss = (f - c.a * z).squaredNorm();
       ++best.points;
       if (rss < best.rss) {
@@ -145,7 +146,8 @@ ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>
         best.base = base;
         const std::size_t m = base.size();
         double largest = 0;
-        for (std::size_t i = 0; i < m; ++i) largest = std::max(largest, z[static_cast<Eigen::Index>(i)]);
+        for (std::size_t i = 0; i < m; ++i)
+          largest = std::max(largest, z[static_cast<Eigen::Index>(i)]);
         // An operator the data want at zero keeps a negligible positive stiffness (it is fitted
         // in log k).
         for (std::size_t i = 0; i < m; ++i)

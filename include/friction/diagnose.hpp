@@ -211,6 +211,9 @@ struct Verdict {
   double delta_bic = 0;           ///< rule (a): BIC(candidate) - BIC(current)
   double drop = 0;                ///< rule (b): RSS0 - RSS1 [N^2]
   double required = 0;            ///< rule (b): what the drop must exceed [N^2]
+  /// Lag-one correlation of the candidate's estimation residual (AR(1) phi, noise_colour.hpp):
+  /// rules (a) and (b) count (1 - phi)/(1 + phi) of the samples as independent.
+  double residual_colour = 0;
   bool operator_limited = false;  ///< (b) failed only on what one more operator buys
   Validation validation = Validation::not_evaluated;
   double validation_before = 0;  ///< RSS/SSS % of the current model (rule c)

@@ -53,12 +53,12 @@
 #pragma once
 
 #include <algorithm>
-#include <initializer_list>
 #include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdio>
 #include <cstdlib>
+#include <initializer_list>
 #include <limits>
 #include <optional>
 #include <span>
@@ -832,7 +832,8 @@ namespace table_detail {
 inline std::vector<double> log_grid(double lo, double hi, int n) {
   std::vector<double> g;
   if (!(lo > 0) || !(hi > lo)) return {lo > 0 ? lo : hi};
-  for (int i = 0; i < n; ++i) g.push_back(lo * std::pow(hi / lo, n > 1 ? double(i) / (n - 1) : 0.0));
+  for (int i = 0; i < n; ++i)
+    g.push_back(lo * std::pow(hi / lo, n > 1 ? double(i) / (n - 1) : 0.0));
   return g;
 }
 inline std::vector<double> symmetric(std::initializer_list<double> magnitudes, double scale,
@@ -857,8 +858,7 @@ inline std::vector<ProfileAxis> profile_axes(Effect e, const ProfileScales& s) {
     case Effect::stribeck: {
       std::vector<double> fs;
       for (double r : {1.05, 1.15, 1.3, 1.6, 2.0, 2.6}) fs.push_back(r * f0);
-      return {{"stribeck_velocity",
-               log_grid(0.01 * s.sliding_speed_95, s.sliding_speed_95, 9)},
+      return {{"stribeck_velocity", log_grid(0.01 * s.sliding_speed_95, s.sliding_speed_95, 9)},
               {"stribeck_exponent", {0.5, 1.0, 1.5, 2.0, 2.5}},
               {"static", fs}};
     }

@@ -334,9 +334,9 @@ struct ExtensionParameters {
 /// The per-sample context of an extended model: the motion over the interval (t_{k-1}, t_k].
 template <typename T>
 struct ExtendedMotion {
-  T x{0};             ///< displacement at t_k [m] (absolute: position-dependence uses it)
-  T dx{0};            ///< x_k - x_{k-1} [m]
-  T velocity{0};      ///< [m/s], dx / dt: the interval velocity the base model steps with
+  T x{0};               ///< displacement at t_k [m] (absolute: position-dependence uses it)
+  T dx{0};              ///< x_k - x_{k-1} [m]
+  T velocity{0};        ///< [m/s], dx / dt: the interval velocity the base model steps with
   T piece_velocity{0};  ///< [m/s], the velocity the pieces use at t_k (see the header)
   /// piece_velocity is a value at the instant t_k, linear between samples (a record's fitted
   /// derivative); false: the interval's constant velocity (the causal step).  The lag's exact step
@@ -483,8 +483,9 @@ class Extended {
         lag_started_ = true;
       } else if (dt > 0.0 && c.piece_velocity_at_instant) {
         const T slope_tau = (v - previous_piece_velocity_) * tau / c.dt;
-        lagged_velocity_ = v - slope_tau + (lagged_velocity_ - previous_piece_velocity_ + slope_tau) *
-                                               exp(-c.dt / tau);
+        lagged_velocity_ =
+            v - slope_tau +
+            (lagged_velocity_ - previous_piece_velocity_ + slope_tau) * exp(-c.dt / tau);
       } else if (dt > 0.0) {
         lagged_velocity_ = v + (lagged_velocity_ - v) * exp(-c.dt / tau);
       }
@@ -637,8 +638,7 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
   FRICTION_CHECK(!p.normal_load || !normal.empty(),
                  "simulate_extended: the normal-load extension needs a normal force record");
   if (n == 0) return;
-  const std::vector<T> xs =
-      delayed_displacement(time, x, p.delay ? p.delay->delay : T(0));
+  const std::vector<T> xs = delayed_displacement(time, x, p.delay ? p.delay->delay : T(0));
   // The pieces' velocity and acceleration at the sample instants (header: Differentiators), with
   // the record's windows; the base's interval velocity dx/dt.
   DerivativeWindows own;
@@ -676,8 +676,9 @@ void simulate_extended(Extended<Base>& model, std::span<const double> time, std:
                        const DerivativeWindows* windows = nullptr) {
   FRICTION_CHECK(force.size() == x.size(),
                  "simulate_extended: time, displacement and force must have the same length");
-  for_each_extended_step(model, time, x, normal, windows,
-                         [&](std::size_t k, const ExtendedMotion<T>&, const T& f) { force[k] = f; });
+  for_each_extended_step(
+      model, time, x, normal, windows,
+      [&](std::size_t k, const ExtendedMotion<T>&, const T& f) { force[k] = f; });
 }
 
 /// Convenience overload returning the simulated force.
