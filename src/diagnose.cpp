@@ -72,8 +72,7 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
                   record_derivative_windows(est.time, est.displacement),
                   profile_scales(est,
                                  run_extended_slip(b.state.base, b.state.ext,
-                                                   deflections_from_relative(b.state.base,
-                                                                             b.state.rho),
+                                                   deflections_from_relative(b.state.base, b.state.rho, b.state.ext),
                                                    est),
                                  b.state.ext.reference_force)};
 

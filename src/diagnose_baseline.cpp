@@ -61,7 +61,7 @@ Baseline fit_baseline(const Record& est, const Record& val, const DiagnoseOption
                    : 0.0;
   s.ext.reference_force = s.base.sliding_force();
   const ExtendedSlipRun run =
-      run_extended_slip(s.base, s.ext, deflections_from_relative(s.base, s.rho), est);
+      run_extended_slip(s.base, s.ext, deflections_from_relative(s.base, s.rho, s.ext), est);
   s.rss = 0;
   for (std::size_t k = 0; k < est.size(); ++k)
     s.rss += (est.force[k] - run.force[k]) * (est.force[k] - run.force[k]);

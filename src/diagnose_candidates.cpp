@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "diagnose_stages.hpp"
+#include "extension_steps.hpp"
 #include "friction/identification.hpp"
 #include "friction/noise_colour.hpp"
 
@@ -75,11 +76,16 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
   t.fit.estimation_percent = percent(c.est.force, t.result.rss);
   // The validation record is only consulted (rule c) when rules a and b pass.
   t.fit.validation_percent = std::numeric_limits<double>::quiet_NaN();
-  if (accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation, s.validation - 1.0, phi)
-          .passes_estimation_rules())
+  bool on_edge = false;
+  for (const auto& ab : t.result.at_bound) on_edge = on_edge || ab.first == e;
+  if (!on_edge && accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation,
+                         s.validation - 1.0, phi)
+                      .passes_estimation_rules())
     t.fit.validation_percent = extended_validation_percent(t.result.base, t.result.ext, c.val);
   t.fit.verdict = accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation,
                          t.fit.validation_percent, phi);
+  for (const auto& [effect, name] : t.result.at_bound)
+    if (effect == e) t.fit.verdict.at_bound = name;
   t.fit.earns_place = t.fit.verdict.earns_place();
   t.fit.delta_bic = t.fit.verdict.delta_bic;
   t.fit.required_drop = t.fit.verdict.required;
@@ -110,7 +116,14 @@ void check_nested(const Context& c, const State& s, std::vector<Tried>& round) {
 }
 
 // The state after accepting `t` on top of `s`.
-State accepted(const State& s, const Tried& t) {
+// The state after accepting t.  The candidate's fit started from the operators of a model that
+// was identified on a force holding the effect (the baseline's M was chosen by BIC with the
+// effect's misfit in it), and a local refit from there can keep that distortion (identify's
+// restart, extension_identification.hpp section 1): an offset fitted from the baseline of an
+// asymmetric record stopped at an RSS 16 % above what the same model reached from the asymmetry's
+// solution.  So the accepted model gets the restart too: NLR with its order selected again on the
+// force without the pieces, the joint fit from that base, kept when its BIC is lower.
+State accepted(const Context& c, const State& s, const Tried& t) {
   State next;
   next.base = t.result.base;
   next.rho = t.result.rho;
@@ -119,6 +132,19 @@ State accepted(const State& s, const Tried& t) {
   next.validation = t.fit.validation_percent;
   next.order = s.order;
   next.order.push_back(t.fit.effect);
+  ExtensionFitOptions o;
+  o.max_iterations = c.options.max_iterations;
+  o.max_operators = c.options.method.max_operators;
+  o.global_stage = false;
+  bool restarted = false;
+  const ExtendedSlipFit g = extension_detail::restart_base(c.est, t.result, o, restarted);
+  if (restarted) {
+    next.base = g.base;
+    next.rho = g.rho;
+    next.ext = g.ext;
+    next.rss = g.rss;
+    next.validation = extended_validation_percent(g.base, g.ext, c.val);
+  }
   return next;
 }
 
@@ -145,7 +171,7 @@ std::vector<State> rebuild_chain(const Context& c, const State& first, const Sta
     }
     const bool last = i + 1 == full.order.size();
     const ExtendedSlipFit f =
-        last ? ExtendedSlipFit{full.base, full.rho, full.ext, full.rss, true}
+        last ? ExtendedSlipFit{full.base, full.rho, full.ext, full.rss, true, {}}
              : fit_extended_slip(c.est, full.base, full.rho, sub, false, c.options.max_iterations);
     State st;
     st.base = f.base;
@@ -195,6 +221,10 @@ Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double
   return v;
 }
 
+Tried fit_one_candidate(const Context& c, const State& s, Effect e) {
+  return fit_candidate(c, s, e, gather_evidence(s.base, s.ext, c.est, s.rho));
+}
+
 std::vector<Tried> fit_candidates(const Context& c, const State& s,
                                   const std::vector<Effect>& pool) {
   const ResidualEvidence ev = gather_evidence(s.base, s.ext, c.est, s.rho);
@@ -219,7 +249,7 @@ Chain forward_pass(const Context& c, const State& start, const std::vector<Effec
       if (t.fit.earns_place && (!best || t.fit.validation_percent < best->fit.validation_percent))
         best = &t;
     if (!best) break;
-    chain.states.push_back(accepted(chain.states.back(), *best));
+    chain.states.push_back(accepted(c, chain.states.back(), *best));
     chain.rounds.push_back(std::move(tried));
   }
   return chain;
@@ -228,7 +258,7 @@ Chain forward_pass(const Context& c, const State& start, const std::vector<Effec
 double residual_phi(const Context& c, const MaxwellSlipParameters<double>& base,
                     const ExtensionParameters<double>& ext, const std::vector<double>& rho) {
   const ExtendedSlipRun run =
-      run_extended_slip(base, ext, deflections_from_relative(base, rho), c.est);
+      run_extended_slip(base, ext, deflections_from_relative(base, rho, ext), c.est);
   std::vector<double> e(c.est.size());
   for (std::size_t k = 0; k < e.size(); ++k) e[k] = c.est.force[k] - run.force[k];
   return residual_colour(e).phi;

@@ -86,6 +86,9 @@ struct Tried {
   ExtendedSlipFit result;
 };
 
+/// Effect e fitted on top of state s as a candidate of a round is (evidence, profile, fit, rules).
+Tried fit_one_candidate(const Context& c, const State& s, Effect e);
+
 /// The rule of section 4: from RSS0 to RSS1 with p extra parameters, validation val0 -> val1 (NaN:
 /// not evaluated).
 Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double val0, double val1,

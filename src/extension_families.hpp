@@ -118,10 +118,12 @@ struct SlipFamily {
   void set_state(Extended<MaxwellSlip<T>>& model, const T* theta, const T* s) const {
     using std::exp;
     const std::size_t m = p.size();
+    // Relative to the centre of each operator's box, a Delta_i with an asymmetry a (extensions.hpp).
+    const T a = model.extensions().asymmetry ? model.extensions().asymmetry->asymmetry : T(0);
     std::vector<T> d(m);
     for (std::size_t i = 0; i < m; ++i)
-      d[i] = s[i] * (free_base ? exp(theta[m + i]) : T(p.threshold[i]));
-    model.base().reset(std::span<const T>(d));
+      d[i] = (s[i] + a) * (free_base ? exp(theta[m + i]) : T(p.threshold[i]));
+    model.base().reset(std::span<const T>(d), model.asymmetry());
   }
   std::vector<double> state_bounds() const { return {-1.0, 1.0}; }
   // Report entries of block 0's base part, fitted as log k_i, log Delta_i; the values are those of
@@ -197,10 +199,11 @@ struct DnlrxFamily {
   void set_state(Extended<Dnlrx<T>>& model, const T* theta, const T* s) const {
     using std::exp;
     const std::size_t nf = filter_count();
+    const T a = model.extensions().asymmetry ? model.extensions().asymmetry->asymmetry : T(0);
     std::vector<T> d(p.size());
     for (std::size_t i = 0; i < p.size(); ++i)
-      d[i] = s[i] * (free_base ? exp(theta[nf + i]) : T(p.threshold[i]));
-    model.base().reset(std::span<const T>(d));
+      d[i] = (s[i] + a) * (free_base ? exp(theta[nf + i]) : T(p.threshold[i]));
+    model.base().reset(std::span<const T>(d), model.asymmetry());
   }
   std::vector<double> state_bounds() const { return {-1.0, 1.0}; }
   // Report entries of block 0's base part: the filters (N/m) and log Delta_i.

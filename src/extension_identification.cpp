@@ -230,12 +230,10 @@ ExtendedFreeRun free_run_extended(const AnyModel& model, const Record& r) {
         const ExtensionParameters<double>& pieces = ext.extensions();
         if constexpr (std::is_same_v<B, MaxwellSlip<double>>) {
           const SlipFamily fam{p, false};
-          const std::vector<double> plain =
-              estimate_initial_deflections(p, r.displacement, r.force);
           const std::vector<double> s = estimate_family_state(
-              r, fam, pieces, state_from(plain, p.threshold), value_of(ext.reference_force()));
+              r, fam, pieces, plain_relative_state(p, pieces, r), value_of(ext.reference_force()));
           out.simulated = family_run(r, fam, pieces, nullptr, s);
-          out.initial = deflections_from_relative(p, s);
+          out.initial = deflections_from_relative(p, s, pieces);
         } else if constexpr (std::is_same_v<B, Dnlrx<double>>) {
           const DnlrxFamily fam{p, false};
           const DnlrxFreeRun plain = free_run_dnlrx(p, r.time, r.displacement, r.force);

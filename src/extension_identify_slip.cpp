@@ -26,7 +26,7 @@ ProfileContext profile_context(const Record& r, const ExtendedSlipFit& cur) {
   return {
       record_derivative_windows(r.time, r.displacement),
       profile_scales(
-          r, run_extended_slip(cur.base, cur.ext, deflections_from_relative(cur.base, cur.rho), r),
+          r, run_extended_slip(cur.base, cur.ext, deflections_from_relative(cur.base, cur.rho, cur.ext), r),
           cur.ext.reference_force)};
 }
 
@@ -85,6 +85,8 @@ ExtendedSlipFit add_pieces(const Record& r, ExtendedSlipFit cur, const std::vect
   return cur;
 }
 
+}  // namespace
+
 // The force with the fitted pieces taken out: added terms subtracted, the asymmetry's shift of the
 // slip limits too (a L F0: exact while the level is constant, extensions.hpp), divided by the level
 // along the fitted model's run.  The restart's order selection runs on it: on the force as
@@ -95,7 +97,8 @@ std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit&
       cur.ext.reference_force > 0 ? cur.ext.reference_force : cur.base.sliding_force();
   const double asymmetry = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(cur.base), cur.ext, 2);
-  model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho)));
+  model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho, cur.ext)),
+                     model.asymmetry());
   std::vector<double> corrected(r.size());
   for_each_extended_step(model, std::span<const double>(r.time),
                          std::span<const double>(r.displacement), std::span<const double>(r.normal),
@@ -139,8 +142,6 @@ ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
   }
   return cur;
 }
-
-}  // namespace
 
 void identify_on_maxwell_slip(ExtensionIdentification& res,
                               const MaxwellSlipParameters<double>& base0, const Record& r,

@@ -54,7 +54,7 @@ void fill_columns(const Record& r, const std::vector<double>& thresholds,
   unit.stiffness.assign(m, 1.0);
   unit.threshold = thresholds;
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(unit), ext, 2);
-  model.base().reset(deflections_from_relative(unit, rho));
+  model.base().reset(deflections_from_relative(unit, rho, ext), model.asymmetry());
   const bool lag = ext.frictional_lag.has_value();
   for_each_extended_step(model, std::span<const double>(r.time),
                          std::span<const double>(r.displacement), std::span<const double>(r.normal),

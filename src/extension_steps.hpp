@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "friction/dnlrx.hpp"
+#include "friction/extension_fit.hpp"
 #include "friction/extension_identification.hpp"
 #include "friction/lugre.hpp"
 #include "friction/maxwell_slip.hpp"
@@ -35,6 +36,15 @@ std::vector<Effect> velocity_pieces_first(std::vector<Effect> effects);
 /// Warnings about the pieces: bounds and missing evidence (header comment, 3).
 void judge_evidence(ExtensionIdentification& res, const std::vector<Effect>& effects, double f0,
                     double sigmas);
+
+/// The force with the fitted pieces taken out (added terms, the asymmetry's shift), divided by the
+/// level along the fitted model's run.
+std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit& cur);
+
+/// The restart (section 1): NLR (order selected again) on the force without the pieces, the joint
+/// fit from that base; the fit with the lower BIC is returned (`restarted` says which).
+ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
+                             const ExtensionFitOptions& o, bool& restarted);
 
 /// Maxwell Slip base: the base and all pieces refitted jointly, with the restart (section 1).
 void identify_on_maxwell_slip(ExtensionIdentification& res,

@@ -689,8 +689,16 @@ std::string parameter_value(const Json& v) {
   return v.dump();
 }
 
-// Interval of a finding's parameter when the document gives one ({value, lower95, upper95}).
-std::string parameter_interval(const Json& v) {
+// Interval of a finding's parameter: its `intervals` entry ([low, high]) when the document gives
+// one, or the parameter's own {value, lower95, upper95}.
+std::string parameter_interval(const Json& finding, const std::string& name, const Json& v) {
+  if (finding.contains("intervals") && finding["intervals"].contains(name)) {
+    const Json& i = finding["intervals"][name];
+    if (i.is_array() && i.size() == 2 && i[0].is_number() && i[1].is_number())
+      return "[" + format_number(i[0].get<double>(), 4) + ", " + format_number(i[1].get<double>(), 4) +
+             "]";
+    return "no standard error";
+  }
   if (v.is_object()) return interval(v);
   return "not given by the diagnosis";
 }
@@ -844,7 +852,7 @@ void add_finding_panel(Document& doc, const std::string& id, const RecordView& v
   if (in.finding.contains("parameters") && in.finding["parameters"].is_object())
     for (const auto& [name, value] : in.finding["parameters"].items())
       t.rows.push_back({name, parameter_value(value), extension_parameter_unit(name),
-                        parameter_interval(value)});
+                        parameter_interval(in.finding, name, value)});
   if (!t.rows.empty()) doc.add(t);
   if (in.finding.contains("ambiguous_with") && in.finding["ambiguous_with"].is_array() &&
       !in.finding["ambiguous_with"].empty()) {

@@ -87,7 +87,7 @@ Signals signals_of(const MaxwellSlipParameters<double>& base,
                    const ExtensionParameters<double>& ext, const Record& r,
                    const std::vector<double>& rho) {
   const std::size_t n = r.size();
-  const ExtendedSlipRun run = run_extended_slip(base, ext, deflections_from_relative(base, rho), r);
+  const ExtendedSlipRun run = run_extended_slip(base, ext, deflections_from_relative(base, rho, ext), r);
   Signals s;
   s.f0 = ext.reference_force > 0 ? ext.reference_force : base.sliding_force();
   s.e.resize(n);
@@ -309,7 +309,7 @@ double extended_validation_percent(const MaxwellSlipParameters<double>& base,
                                    const Record& record, std::vector<double>* simulated) {
   const std::vector<double> rho = estimate_relative_deflections(base, extensions, record, nullptr);
   const ExtendedSlipRun run =
-      run_extended_slip(base, extensions, deflections_from_relative(base, rho), record);
+      run_extended_slip(base, extensions, deflections_from_relative(base, rho, extensions), record);
   double rss = 0;
   for (std::size_t k = 0; k < record.size(); ++k)
     rss += (record.force[k] - run.force[k]) * (record.force[k] - run.force[k]);

@@ -177,11 +177,10 @@ struct Excitation {
 /// Per-sample threshold scale and clamp asymmetry of the written-out Maxwell Slip recursion.
 struct SlipLevel {
   std::function<double(std::size_t k, double t, double x, double v)> scale;  // null: 1
-  /// Direction-dependent sliding levels with presliding centred: thresholds scaled by 1 + a d,
-  /// d = clamp(F(t-1) / (L(t-1) F0), -1, 1) the previous force relative to its sliding level, so
-  /// the level follows the force through presliding (+1 / -1 while sliding in +x / -x).  Note that
-  /// clamp bounds [-Delta (1 - a), Delta (1 + a)] would not do: they are the symmetric operator
-  /// shifted by a Delta, i.e. exactly an offset of a F0.
+  /// Direction-dependent slip limits: clamp bounds [-Delta c (1 - a), Delta c (1 + a)], an
+  /// asperity whose friction depends on the direction of slip.  At a constant level c they are the
+  /// symmetric operator shifted by a Delta c, i.e. exactly an offset of a F0 (the diagnosis must
+  /// call the two ambiguous there); a changing level separates them.
   double asymmetry = 0;
 };
 

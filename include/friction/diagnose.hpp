@@ -214,6 +214,9 @@ struct Verdict {
   /// Lag-one correlation of the candidate's estimation residual (AR(1) phi, noise_colour.hpp):
   /// rules (a) and (b) count (1 - phi)/(1 + phi) of the samples as independent.
   double residual_colour = 0;
+  /// A parameter of the candidate the fit left on an edge of its range (e.g. a Stribeck exponent
+  /// at 5, a mass at 0): the effect as defined does not describe the record, whatever it buys.
+  std::string at_bound;
   bool operator_limited = false;  ///< (b) failed only on what one more operator buys
   Validation validation = Validation::not_evaluated;
   double validation_before = 0;  ///< RSS/SSS % of the current model (rule c)
@@ -223,7 +226,9 @@ struct Verdict {
   bool bic_falls() const { return delta_bic < 0; }
   bool drop_exceeds() const { return drop > required; }
   /// Rules (a) and (b): the validation record may be consulted.
-  bool passes_estimation_rules() const { return fitted && bic_falls() && drop_exceeds(); }
+  bool passes_estimation_rules() const {
+    return fitted && at_bound.empty() && bic_falls() && drop_exceeds();
+  }
   bool earns_place() const {
     return passes_estimation_rules() && validation == Validation::falls && nested == Nested::none;
   }
@@ -278,6 +283,9 @@ struct Finding {
   double signature_explained = 0;
   std::optional<PartnerEvidence> partner;
   std::vector<Alternative> ambiguous_with;
+  /// Free runs on the validation record of the model before and after this finding (initial
+  /// state estimated there), for the report's panels [N]; empty for nonlocal-memory.
+  std::vector<double> validation_run_before, validation_run_after;
 
   /// methods.md 7 name ("viscous", ..., "nonlocal-memory").
   std::string name() const;

@@ -140,8 +140,8 @@ class DnlrxRegressor {
   }
 
   /// Operators at the given deflections (clamped to the thresholds), at rest since ever.
-  void reset(std::span<const T> deflections) {
-    operators_.reset(deflections);
+  void reset(std::span<const T> deflections, const T& asymmetry = T(0)) {
+    operators_.reset(deflections, asymmetry);
     fill_history();
   }
 
@@ -249,10 +249,10 @@ class Dnlrx {
   void reset() { state_.reset(); }
 
   /// Operators at the given deflections (clamped to the thresholds), at rest since ever.
-  void reset(std::span<const T> deflections) {
+  void reset(std::span<const T> deflections, const T& asymmetry = T(0)) {
     FRICTION_CHECK(deflections.size() == size(), "DNLRX: ", deflections.size(),
                    " initial deflections for ", size(), " operators");
-    state_.reset(deflections);
+    state_.reset(deflections, asymmetry);
   }
 
   /// Advance by one sample and return the friction force.

@@ -229,8 +229,9 @@ inline constexpr EffectParameter kNormal[] = {
 
 inline constexpr std::string_view kSeveralSpeeds = "sliding at several constant speeds";
 inline constexpr std::string_view kOffsetOrAsymmetry =
-    "rest periods and small presliding loops (an offset shows at rest and in presliding, an "
-    "asymmetry only in the sliding levels)";
+    "a change of the friction level along the record (a normal load that changes, sliding across "
+    "a Stribeck curve's speeds): an asymmetry scales with the level, an offset does not; at a "
+    "constant level the two are the same force, at rest and in presliding too";
 inline constexpr std::string_view kInertiaOrPosition =
     "motion at several frequencies or amplitudes over the same travel (inertia follows the "
     "acceleration, a position term the position)";
@@ -260,7 +261,8 @@ inline constexpr std::array<EffectInfo, kEffectCount> kEffectTable = {{
      false, StartDetail::none},
     {Effect::asymmetry, "asymmetry", EffectKind::level, table_detail::kAsymmetry, "asymmetry",
      NullValue::zero, "sliding levels differ by direction, presliding centred",
-     "thresholds scaled by 1 + a d (direction-dependent sliding levels)", Effect::offset, false,
+     "slip limits (1 + a) in +x and (1 - a) in -x (direction-dependent slip forces)",
+     Effect::offset, false,
      table_detail::kOffsetOrAsymmetry, table_detail::kRestsAndBothDirections, std::nullopt, false,
      StartDetail::none},
     {Effect::offset, "offset", EffectKind::added, table_detail::kOffset, "offset", NullValue::zero,

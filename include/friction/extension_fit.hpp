@@ -108,6 +108,8 @@ struct ExtendedSlipFit {
   ExtensionParameters<double> ext;
   double rss = 0;
   bool ok = false;
+  /// Piece parameters the fit left on a finite edge of their box (effect, methods.md 7 name).
+  std::vector<std::pair<Effect, std::string>> at_bound;
 };
 
 /// Fits theta and rho from the given start (see the header comment); `fix_theta` estimates the
@@ -137,9 +139,16 @@ struct ExtendedSlipReport {
 };
 ExtendedSlipReport report_extended_slip(const Record& r, const ExtendedSlipFit& fit);
 
-/// delta_i(0) = rho_i Delta_i.
+/// delta_i(0) = (rho_i + a) Delta_i: rho_i in [-1, 1] relative to the centre a Delta_i of operator
+/// i's box, a the asymmetry of `ext` (0 without one; extensions.hpp).
 std::vector<double> deflections_from_relative(const MaxwellSlipParameters<double>& base,
-                                              const std::vector<double>& rho);
+                                              const std::vector<double>& rho,
+                                              const ExtensionParameters<double>& ext);
+
+/// The plain Maxwell Slip estimate of the relative initial state (initial_state.hpp) on the force
+/// without the pieces' added terms and the asymmetry's shift: the start of every refinement.
+std::vector<double> plain_relative_state(const MaxwellSlipParameters<double>& base,
+                                         const ExtensionParameters<double>& ext, const Record& r);
 
 /// The initial state of a record for fixed parameters: the plain Maxwell Slip estimate
 /// (initial_state.hpp) as a start, refined through the extended model; never worse than its

@@ -403,6 +403,8 @@ class Extended {
   const Base& base() const noexcept { return base_; }
   Base& base() noexcept { return base_; }
   const Parameters& extensions() const noexcept { return p_; }
+  /// The asymmetry piece's a (0 without one): what the base's initial state is clamped with.
+  T asymmetry() const noexcept { return p_.asymmetry ? p_.asymmetry->asymmetry : T(0); }
   /// F0 [N] (see the header comment).
   const T& reference_force() const noexcept { return f0_; }
 

@@ -86,12 +86,15 @@ class MaxwellSlip {
     for (auto& d : deflection_) d = T(0);
   }
 
-  /// Start from given deflections (clamped to the thresholds).
-  void reset(std::span<const T> deflections) {
+  /// Start from given deflections, clamped to the thresholds: to [-(1 - a) Delta_i,
+  /// (1 + a) Delta_i] with the asymmetry a of Motion::asymmetry (a model with an asymmetry piece
+  /// passes its a: clamped to the symmetric box, an equivalent state of it would be cut).
+  void reset(std::span<const T> deflections, const T& asymmetry = T(0)) {
     FRICTION_CHECK(deflections.size() == size(), "Maxwell Slip: ", deflections.size(),
                    " initial deflections for ", size(), " operators");
     for (std::size_t i = 0; i < size(); ++i)
-      deflection_[i] = clamp(deflections[i], T(-p_.threshold[i]), p_.threshold[i]);
+      deflection_[i] = clamp(deflections[i], T(-(T(1) - asymmetry) * p_.threshold[i]),
+                             T((T(1) + asymmetry) * p_.threshold[i]));
   }
 
   /// Current deflections delta_i [m].

@@ -97,20 +97,21 @@ report::Document diagnose_report(const Json& doc, const Diagnosis& d, const Reco
   fits.final_validation = free_run(*d.final_model, val);
   fits.baseline_label = "baseline (" + d.baseline_model->type() + ")";
   fits.final_label = d.findings.empty() ? "final (= baseline)" : "final";
-  // Per-finding panels: the diagnosis keeps only the baseline and the final model, so each
-  // finding's signature is shown from the baseline to the final model (exactly that finding's
-  // step when there is one finding).  Once the diagnosis keeps each step's model, `before` and
-  // `after` become that step's runs.
+  // Per-finding panels: each finding's signature before and after its own step of the chain.
   std::vector<report::FindingPanelInput> panels;
   const Json& findings = doc["findings"];
-  for (std::size_t k = 0; k < findings.size(); ++k) {
+  for (std::size_t k = 0; k < findings.size() && k < d.findings.size(); ++k) {
+    const Finding& f = d.findings[k];
     report::FindingPanelInput in;
     in.effect = findings[k].value("effect", std::string());
     in.validation = &val;
-    in.before = fits.baseline_validation;
-    in.after = fits.final_validation;
-    in.before_label = "baseline";
-    in.after_label = findings.size() == 1 ? "after" : "final (all findings)";
+    const bool own_runs = !f.validation_run_before.empty() && !f.validation_run_after.empty();
+    in.before = own_runs ? std::span<const double>(f.validation_run_before)
+                         : std::span<const double>(fits.baseline_validation);
+    in.after = own_runs ? std::span<const double>(f.validation_run_after)
+                        : std::span<const double>(fits.final_validation);
+    in.before_label = own_runs ? "before" : "baseline";
+    in.after_label = own_runs ? "after" : "final";
     in.finding = findings[k];
     panels.push_back(std::move(in));
   }
