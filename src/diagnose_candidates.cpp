@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "diagnose_stages.hpp"
 #include "extension_steps.hpp"
@@ -59,6 +60,17 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
     // The evidence chose the candidate; the profile, not the evidence's regression, starts it.
     const ProfiledStart p = profile_start(c.est, s.base, s.rho, start, e, c.windows, c.scales);
     t.result = fit_extended_slip(c.est, p.base, s.rho, p.ext, false, c.options.max_iterations);
+    // A piece accepted on an edge (forward_pass) was fitted without what this candidate adds: its
+    // own profile, with the candidate beside it, may find the basin the edge hid (a Stribeck
+    // curve alone ran to exponent 5; with the viscous term and the lag its minimum is near 2).
+    for (const auto& [edge_effect, name] : s.at_bound) {
+      if (edge_effect == e || !s.ext.has(edge_effect)) continue;
+      const ProfiledStart q =
+          profile_start(c.est, p.base, s.rho, p.ext, edge_effect, c.windows, c.scales);
+      const ExtendedSlipFit g =
+          fit_extended_slip(c.est, q.base, s.rho, q.ext, false, c.options.max_iterations);
+      if (g.ok && (!t.result.ok || g.rss < t.result.rss)) t.result = g;
+    }
   } catch (const std::exception& ex) {
     t.fit.verdict.fitted = false;
     t.fit.verdict.failure = ex.what();
@@ -76,9 +88,7 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
   t.fit.estimation_percent = percent(c.est.force, t.result.rss);
   // The validation record is only consulted (rule c) when rules a and b pass.
   t.fit.validation_percent = std::numeric_limits<double>::quiet_NaN();
-  bool on_edge = false;
-  for (const auto& ab : t.result.at_bound) on_edge = on_edge || ab.first == e;
-  if (!on_edge && accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation,
+  if (accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation,
                          s.validation - 1.0, phi)
                       .passes_estimation_rules())
     t.fit.validation_percent = extended_validation_percent(t.result.base, t.result.ext, c.val);
@@ -132,6 +142,7 @@ State accepted(const Context& c, const State& s, const Tried& t) {
   next.validation = t.fit.validation_percent;
   next.order = s.order;
   next.order.push_back(t.fit.effect);
+  next.at_bound = t.result.at_bound;
   ExtensionFitOptions o;
   o.max_iterations = c.options.max_iterations;
   o.max_operators = c.options.method.max_operators;
@@ -144,6 +155,7 @@ State accepted(const Context& c, const State& s, const Tried& t) {
     next.ext = g.ext;
     next.rss = g.rss;
     next.validation = extended_validation_percent(g.base, g.ext, c.val);
+    next.at_bound = g.at_bound;
   }
   return next;
 }
@@ -179,6 +191,7 @@ std::vector<State> rebuild_chain(const Context& c, const State& first, const Sta
     st.ext = f.ext;
     st.rss = f.rss;
     st.validation = last ? full.validation : extended_validation_percent(f.base, f.ext, c.val);
+    st.at_bound = last ? full.at_bound : f.at_bound;
     st.order.assign(full.order.begin(), full.order.begin() + static_cast<std::ptrdiff_t>(i + 1));
     states.push_back(st);
   }
@@ -239,18 +252,52 @@ Chain forward_pass(const Context& c, const State& start, const std::vector<Effec
                    std::vector<CandidateFit>& first_round) {
   Chain chain;
   chain.states.push_back(start);
-  for (std::size_t round = 0; round < c.options.max_findings; ++round) {
-    std::vector<Tried> tried = fit_candidates(c, chain.states.back(), pool);
-    if (round == 0)
-      for (const auto& t : tried) first_round.push_back(t.fit);
-    // Among those that earn their place, the largest gain (the lowest validation error).
-    const Tried* best = nullptr;
-    for (const auto& t : tried)
-      if (t.fit.earns_place && (!best || t.fit.validation_percent < best->fit.validation_percent))
-        best = &t;
-    if (!best) break;
-    chain.states.push_back(accepted(c, chain.states.back(), *best));
-    chain.rounds.push_back(std::move(tried));
+  std::vector<Effect> live = pool;
+  for (;;) {
+    while (chain.states.back().order.size() < c.options.max_findings) {
+      std::vector<Tried> tried = fit_candidates(c, chain.states.back(), live);
+      if (chain.rounds.empty() && first_round.empty())
+        for (const auto& t : tried) first_round.push_back(t.fit);
+      // Among those that earn their place, the largest gain (the lowest validation error); one
+      // with a parameter on an edge only when no other earns its place.
+      const Tried* best = nullptr;
+      for (const bool edge_allowed : {false, true}) {
+        for (const auto& t : tried)
+          if ((edge_allowed ? t.fit.verdict.earns_place_but_for_an_edge() : t.fit.earns_place) &&
+              (!best || t.fit.validation_percent < best->fit.validation_percent))
+            best = &t;
+        if (best) break;
+      }
+      if (!best) break;
+      chain.states.push_back(accepted(c, chain.states.back(), *best));
+      chain.rounds.push_back(std::move(tried));
+    }
+    // A piece accepted on an edge that the later findings left there goes, and the search goes on
+    // without it.
+    const State& last = chain.states.back();
+    std::optional<std::pair<Effect, std::string>> edge;
+    for (const auto& ab : last.at_bound)
+      if (std::find(last.order.begin(), last.order.end(), ab.first) != last.order.end()) edge = ab;
+    if (!edge) break;
+    State reduced = last;
+    const ExtensionParameters<double> without = without_piece(last, edge->first);
+    const ExtendedSlipFit f =
+        fit_extended_slip(c.est, last.base, last.rho, without, false, c.options.max_iterations);
+    if (!f.ok) break;
+    reduced.base = f.base;
+    reduced.rho = f.rho;
+    reduced.ext = f.ext;
+    reduced.rss = f.rss;
+    reduced.validation = extended_validation_percent(f.base, f.ext, c.val);
+    reduced.at_bound = f.at_bound;
+    reduced.order.erase(std::find(reduced.order.begin(), reduced.order.end(), edge->first));
+    chain.warnings.push_back("removed " + std::string(effect_name(edge->first)) + ": its " +
+                             edge->second +
+                             " stayed at the edge of its range with the other findings in the "
+                             "model (the effect as defined does not describe this record)");
+    chain.removed = true;
+    chain.states = rebuild_chain(c, chain.states.front(), reduced);
+    live.erase(std::find(live.begin(), live.end(), edge->first));
   }
   return chain;
 }

@@ -204,8 +204,8 @@ std::string Verdict::to_text() const {
     return "no better than the viscous piece alone (BIC)";
   std::ostringstream s;
   if (!at_bound.empty())
-    s << at_bound << " ended at the edge of its range (the effect as defined does not describe "
-      << "this record); ";
+    s << at_bound << " ended at the edge of its range (on its own the effect as defined does not "
+      << "describe this record); ";
   if (!bic_falls()) s << "BIC does not fall (" << fmt(delta_bic) << "); ";
   if (!drop_exceeds()) {
     s << "estimation drop " << fmt(drop) << " N^2 below the required " << fmt(required) << " N^2";

@@ -19,6 +19,7 @@
 
 #include <cstddef>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "friction/diagnose.hpp"
@@ -36,6 +37,8 @@ struct State {
   double rss = 0;
   double validation = 0;      ///< RSS/SSS %
   std::vector<Effect> order;  ///< accepted pieces, in order
+  /// Parameters the fit of this state left on an edge of their range.
+  std::vector<std::pair<Effect, std::string>> at_bound;
 };
 
 /// What every stage after the baseline reads and none changes.

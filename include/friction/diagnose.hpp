@@ -215,7 +215,10 @@ struct Verdict {
   /// rules (a) and (b) count (1 - phi)/(1 + phi) of the samples as independent.
   double residual_colour = 0;
   /// A parameter of the candidate the fit left on an edge of its range (e.g. a Stribeck exponent
-  /// at 5, a mass at 0): the effect as defined does not describe the record, whatever it buys.
+  /// at 5, a mass at 0): on its own the effect as defined does not describe the record.  Such a
+  /// candidate is accepted only when no other earns its place, and stays only if a later finding
+  /// brings the parameter inside its range (a Stribeck curve fitted without the viscous term
+  /// beside it runs to an edge; diagnose.cpp, forward_pass).
   std::string at_bound;
   bool operator_limited = false;  ///< (b) failed only on what one more operator buys
   Validation validation = Validation::not_evaluated;
@@ -227,11 +230,13 @@ struct Verdict {
   bool drop_exceeds() const { return drop > required; }
   /// Rules (a) and (b): the validation record may be consulted.
   bool passes_estimation_rules() const {
-    return fitted && at_bound.empty() && bic_falls() && drop_exceeds();
+    return fitted && bic_falls() && drop_exceeds();
   }
-  bool earns_place() const {
+  /// All three rules and the nesting checks, whatever the edges.
+  bool earns_place_but_for_an_edge() const {
     return passes_estimation_rules() && validation == Validation::falls && nested == Nested::none;
   }
+  bool earns_place() const { return earns_place_but_for_an_edge() && at_bound.empty(); }
   /// The reasons, for people (the `verdict` of the document).
   std::string to_text() const;
 };
