@@ -2,10 +2,14 @@
 // the current model, the acceptance rule as a Verdict, the greedy forward pass and the backward
 // pass.
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <exception>
 #include <limits>
+#include <numeric>
 #include <optional>
+#include <thread>
 
 #include "diagnose_stages.hpp"
 #include "extension_steps.hpp"
@@ -241,9 +245,37 @@ Tried fit_one_candidate(const Context& c, const State& s, Effect e) {
 std::vector<Tried> fit_candidates(const Context& c, const State& s,
                                   const std::vector<Effect>& pool) {
   const ResidualEvidence ev = gather_evidence(s.base, s.ext, c.est, s.rho);
-  std::vector<Tried> out;
+  std::vector<Effect> todo;
   for (Effect e : pool)
-    if (!s.ext.has(e)) out.push_back(fit_candidate(c, s, e, ev));
+    if (!s.ext.has(e)) todo.push_back(e);
+  std::vector<Tried> out(todo.size());
+  // Slowest first (the lag, Stribeck and position fits take 10-20 times the others), so that a
+  // thread is not left with one long fit at the end.
+  std::vector<std::size_t> queue(todo.size());
+  std::iota(queue.begin(), queue.end(), std::size_t{0});
+  std::stable_sort(queue.begin(), queue.end(), [&](std::size_t a, std::size_t b) {
+    return profile_axes(todo[a], c.scales).size() > profile_axes(todo[b], c.scales).size();
+  });
+  std::atomic<std::size_t> next{0};
+  std::vector<std::exception_ptr> failed(todo.size());
+  auto work = [&] {
+    for (std::size_t i; (i = next.fetch_add(1)) < queue.size();) {
+      try {
+        out[queue[i]] = fit_candidate(c, s, todo[queue[i]], ev);
+      } catch (...) {
+        failed[queue[i]] = std::current_exception();
+      }
+    }
+  };
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  const std::size_t threads =
+      std::min<std::size_t>(c.options.threads ? c.options.threads : cores, todo.size());
+  std::vector<std::thread> pool_threads;
+  for (std::size_t k = 1; k < threads; ++k) pool_threads.emplace_back(work);
+  work();
+  for (auto& t : pool_threads) t.join();
+  for (const auto& f : failed)
+    if (f) std::rethrow_exception(f);
   check_nested(c, s, out);
   return out;
 }

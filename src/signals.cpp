@@ -212,8 +212,20 @@ std::optional<double> signal_quantum(std::span<const double> signal) {
       const double nearest = std::round(r);
       if (nearest >= 1.0 && std::abs(r - nearest) <= 0.02) unit.push_back(s / nearest);
     }
-    if (static_cast<double>(unit.size()) >= 0.9 * static_cast<double>(d.size()))
-      return median(std::move(unit));
+    if (static_cast<double>(unit.size()) >= 0.9 * static_cast<double>(d.size())) {
+      // The values must lie on the grid too: the increments of smooth motion at a nearly
+      // constant speed are also (almost) all one step, but their sum drifts off any grid (a
+      // ramp with a 0.2 % ripple passed for an encoder of one sample's travel, and the
+      // derivative windows it chose cost the acceleration 5 % of its amplitude).
+      const double quantum = median(std::move(unit));
+      std::size_t on_grid = 0;
+      for (double v : signal) {
+        const double r = (v - signal[0]) / quantum;
+        if (std::isfinite(r) && std::abs(r - std::round(r)) <= 0.02) ++on_grid;
+      }
+      if (static_cast<double>(on_grid) >= 0.9 * static_cast<double>(signal.size())) return quantum;
+      return std::nullopt;
+    }
   }
   return std::nullopt;
 }

@@ -98,8 +98,24 @@ TEST_P(EffectStudy, NamesTheEffectFirstRecoversItsParameterAndGains) {
               ratio, secs, d.to_table().c_str());
   ASSERT_FALSE(d.findings.empty()) << "nothing found";
   const Finding& f = d.findings.front();
-  EXPECT_EQ(f.name(), injected_name(c.effect));
-  if (f.name() == injected_name(c.effect)) {
+  // An asymmetry of the slip limits is an offset aF0 at a constant friction level, at rest and in
+  // presliding too (README, decisions): these records hold the level constant, so the partner is
+  // as right an answer, provided the finding says that the record cannot tell them apart.  Its
+  // parameter is then checked through the equivalence.
+  const std::string injected = injected_name(c.effect);
+  const bool partner_named = (injected == "asymmetry" && f.name() == "offset") ||
+                             (injected == "offset" && f.name() == "asymmetry");
+  if (partner_named) {
+    const auto partners = f.ambiguous_with_names();
+    EXPECT_NE(std::find(partners.begin(), partners.end(), injected), partners.end())
+        << f.name() << " named for " << injected << " without saying they are ambiguous";
+    const double equivalent = injected == "asymmetry" ? m * sys.f0() : m / sys.f0();
+    EXPECT_NEAR(f.parameter(f.name()), equivalent, c.tolerance * std::abs(equivalent))
+        << f.name() << " named for " << injected;
+  } else {
+    EXPECT_EQ(f.name(), injected);
+  }
+  if (f.name() == injected) {
     for (const char* name : {c.parameter, c.secondary}) {
       if (!name) continue;
       ASSERT_TRUE(f.has_parameter(name)) << f.to_json()["parameters"].dump();
@@ -162,13 +178,28 @@ TEST(TwoEffects, ViscousAndOffsetAreBothFound) {
   ASSERT_EQ(d.findings.size(), 2u);
   std::vector<std::string> names{d.findings[0].name(), d.findings[1].name()};
   std::sort(names.begin(), names.end());
-  EXPECT_EQ(names, (std::vector<std::string>{"offset", "viscous"}));
+  // At a constant friction level an asymmetry of the slip limits is the same force as an offset
+  // (see EffectStudy): named with the offset as its partner, it is as right.
+  const Finding* level = nullptr;
+  for (const auto& f : d.findings)
+    if (f.name() == "asymmetry") level = &f;
+  if (level) {
+    const auto partners = level->ambiguous_with_names();
+    EXPECT_NE(std::find(partners.begin(), partners.end(), "offset"), partners.end());
+    EXPECT_EQ(names, (std::vector<std::string>{"asymmetry", "viscous"}));
+  } else {
+    EXPECT_EQ(names, (std::vector<std::string>{"offset", "viscous"}));
+  }
   EXPECT_DOUBLE_EQ(d.findings[0].validation_after, d.findings[1].validation_before);
   EXPECT_DOUBLE_EQ(d.findings[1].validation_after, d.final_validation_percent);
-  const auto& ext = std::get<Extended<MaxwellSlip<double>>>(d.final_model->variant()).extensions();
-  ASSERT_TRUE(ext.viscous && ext.offset);
+  const auto& final_model = std::get<Extended<MaxwellSlip<double>>>(d.final_model->variant());
+  const auto& ext = final_model.extensions();
+  ASSERT_TRUE(ext.viscous && (ext.offset || ext.asymmetry));
   EXPECT_NEAR(ext.viscous->viscous, 40.0, 6.0);
-  EXPECT_NEAR(ext.offset->offset, 0.008, 0.0008);
+  const double offset =
+      ext.offset ? ext.offset->offset
+                 : ext.asymmetry->asymmetry * final_model.base().parameters().sliding_force();
+  EXPECT_NEAR(offset, 0.008, 0.0008);
 }
 
 // Records with no hidden effect: 20 seeds, the two excitation families alternating.  With

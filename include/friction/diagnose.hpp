@@ -158,6 +158,10 @@ struct DiagnoseOptions {
   double ambiguity_evidence = 10.0;
   int max_iterations = 60;  ///< Ceres iterations per fit
   bool backward_pass = true;
+  /// The candidates of a round are independent fits of const inputs: they run on this many
+  /// threads (0: std::thread::hardware_concurrency()), each writing its own slot, so the result
+  /// is the same bit for bit for any count.
+  unsigned threads = 0;
 };
 
 /// One effect's signature in the residual (section 2 of the header).

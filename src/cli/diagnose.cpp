@@ -21,6 +21,7 @@ struct DiagnoseCliOptions {
   std::size_t max_operators = 0;
   bool no_global = false;
   unsigned seed = 1;
+  unsigned threads = 0;
   InputOptions input;
   OutputOptions output;
 };
@@ -146,6 +147,7 @@ int run_diagnose(const DiagnoseCliOptions& o) {
   opt.method.max_operators = o.max_operators;
   opt.method.global_stage = !o.no_global;
   opt.method.seed = o.seed;
+  opt.threads = o.threads;
   Progress progress;
   progress.update("diagnose: fitting the " + opt.baseline + " baseline and its extensions ...");
   const Diagnosis d = diagnose(est, val, opt);
@@ -212,6 +214,10 @@ Action register_diagnose(CLI::App& root) {
   c->add_option("--max-operators", o->max_operators, "NLR: largest M tried by the order selection");
   c->add_flag("--no-global", o->no_global, "Skip the NLopt global stages (faster, less robust)");
   c->add_option("--seed", o->seed, "Seed of the global stages")->capture_default_str();
+  c->add_option("--threads", o->threads,
+                "Candidate fits run on this many threads (0: one per core); the result does not "
+                "depend on it")
+      ->capture_default_str();
   c->add_option("--svg", o->svg, "Write a plot of the residual against velocity (before/after)");
   add_input_options(*c, o->input);
   add_output_options(*c, o->output);
