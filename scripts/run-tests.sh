@@ -13,11 +13,15 @@
 #      the tests labelled "long" (the statistical studies: many fits of the same code paths, which
 #      the Release pass runs and which would take most of CI's time under ASan).
 #      FRICTION_SKIP_SANITIZERS=1 skips this pass (CI always runs it).
+#   7. ThreadSanitizer on the concurrency tests (build-tsan/, only the two test programs that hold
+#      them): diagnose's candidates on four threads, LG's global stages on concurrent threads.
+#      FRICTION_SKIP_SANITIZERS=1 skips it too.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 cd "$FRICTION_ROOT"
 
 ASAN_BUILD_DIR="${FRICTION_ASAN_BUILD_DIR:-build-asan}"
+TSAN_BUILD_DIR="${FRICTION_TSAN_BUILD_DIR:-build-tsan}"
 CTEST_JOBS=2
 
 # run_ctest DIR [extra ctest arguments...]
@@ -92,6 +96,22 @@ sanitizer_pass() {
     run_ctest "$ASAN_BUILD_DIR" --label-exclude long
 }
 
+thread_sanitizer_pass() {
+  if [[ "${FRICTION_SKIP_SANITIZERS:-0}" == 1 ]]; then
+    say "Skipping the ThreadSanitizer pass (FRICTION_SKIP_SANITIZERS=1)"
+    return 0
+  fi
+  if [[ ! -f "$TSAN_BUILD_DIR/CMakeCache.txt" ]]; then
+    cmake -S "$FRICTION_ROOT" -B "$TSAN_BUILD_DIR" -G Ninja -DFRICTION_TSAN=ON \
+      -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFRICTION_BUILD_BENCHMARKS=OFF
+  fi
+  say "Building the concurrency tests in $TSAN_BUILD_DIR with $FRICTION_JOBS jobs"
+  cmake --build "$TSAN_BUILD_DIR" --parallel "$FRICTION_JOBS" --target test_diagnose test_lg
+  export TSAN_OPTIONS="${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}"
+  "$TSAN_BUILD_DIR/tests/test_diagnose" --gtest_filter='Diagnose.TheSameDiagnosisOnOneThreadAndOnSeveral'
+  "$TSAN_BUILD_DIR/tests/test_lg" --gtest_filter='Lg.GlobalStageIsDeterministicOnConcurrentThreads'
+}
+
 total_start=$SECONDS
 if [[ -f "$FRICTION_BUILD_DIR/CMakeCache.txt" ]]; then
   timed "build ($FRICTION_BUILD_DIR)" configure_and_build "$FRICTION_BUILD_DIR"
@@ -104,4 +124,5 @@ timed "ctest ($FRICTION_BUILD_DIR)" run_ctest "$FRICTION_BUILD_DIR"
 timed "browser check of the reports" bash scripts/check-reports.sh
 timed "install test" install_test
 timed "sanitizer pass ($ASAN_BUILD_DIR)" sanitizer_pass
+timed "thread sanitizer pass ($TSAN_BUILD_DIR)" thread_sanitizer_pass
 say "All tests passed ($((SECONDS - total_start))s)"

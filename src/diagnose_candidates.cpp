@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <limits>
 #include <numeric>
@@ -356,8 +357,16 @@ Chain backward_pass(const Context& c, Chain chain) {
       const Verdict v = accept(c, f.rss, full.rss, extra_parameters(full.ext, without), v_without,
                                full.validation, residual_phi(c, full.base, full.ext, full.rho));
       if (!v.earns_place()) {
+        // The rules judge on the estimation record; what the validation record said is reported
+        // beside them, since a user may have a record that would decide (the tribometer's
+        // normal-load term, removed here, takes its validation error from 3.6 % to 0.39 %).
+        char figures[160];
+        std::snprintf(figures, sizeof figures,
+                      " (validation RSS/SSS %.4g %% with it, %.4g %% without; `identify "
+                      "--extension` fits it on request)",
+                      full.validation, v_without);
         chain.warnings.push_back("backward pass removed " + std::string(effect_name(e)) + ": " +
-                                 v.to_text());
+                                 v.to_text() + figures);
         full.base = f.base;
         full.rho = f.rho;
         full.ext = f.ext;

@@ -205,6 +205,15 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   out.ext = ext0;
   std::size_t j = 2 * m;
   out.ext.for_each_parameter([&](Effect, std::string_view, double& v) { v = theta[j++]; });
+  // The phase is fitted unbounded (a box would cut the circle): reported in [0, 2 pi), with a
+  // positive amplitude (the same force; the tribometer's fit ended at 87.7 rad).
+  if (auto& pd = out.ext.position_dependence) {
+    if (pd->amplitude < 0) {
+      pd->amplitude = -pd->amplitude;
+      pd->phase += M_PI;
+    }
+    pd->phase -= 2 * M_PI * std::floor(pd->phase / (2 * M_PI));
+  }
   for (std::size_t q = 0; q < names.size(); ++q) {
     if (held_in_fit(names[q].first, names[q].second)) continue;
     const ExtensionBounds b = extension_parameter_bounds(names[q].first, names[q].second, f0,
