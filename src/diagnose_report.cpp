@@ -221,8 +221,8 @@ std::string Verdict::to_text() const {
       s << "(validation computed for the report only)";
       break;
     case Validation::does_not_fall:
-      s << "validation error does not fall (" << fmt(validation_before) << " -> "
-        << fmt(validation_after) << " %); ";
+      s << "validation error does not fall enough (" << fmt(validation_before) << " -> "
+        << fmt(validation_after) << " %, needs < " << fmt(validation_required) << " %); ";
       break;
     case Validation::falls:
       break;

@@ -54,6 +54,7 @@ struct Context {
   double baseline_excess = 0;  ///< the baseline's RSS above the noise floor [N^2]
   DerivativeWindows windows;   ///< the estimation record's (sample_derivatives.hpp)
   ProfileScales scales;        ///< the estimation record's, for the profiled starts
+  double validation_floor_percent = 0;  ///< the validation record's noise floor, RSS/SSS %
 };
 
 // ---- baseline -----------------------------------------------------------------------------
