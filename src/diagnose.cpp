@@ -67,22 +67,23 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
   dx.baseline_seconds = b.seconds;
   dx.warnings = b.warnings;
   dx.operator_drop = b.operator_drop;
-  const Context c{est,
-                  val,
-                  o,
-                  n,
-                  sigma,
-                  floor_rss,
-                  b.state.ext.reference_force,
-                  b.operator_drop,
-                  std::max(b.state.rss - floor_rss, 0.0),
-                  record_derivative_windows(est.time, est.displacement),
-                  profile_scales(est,
-                                 run_extended_slip(b.state.base, b.state.ext,
-                                                   deflections_from_relative(b.state.base, b.state.rho, b.state.ext),
-                                                   est),
-                                 b.state.ext.reference_force),
-                  noise_floor_percent(val.force)};
+  const Context c{
+      est,
+      val,
+      o,
+      n,
+      sigma,
+      floor_rss,
+      b.state.ext.reference_force,
+      b.operator_drop,
+      std::max(b.state.rss - floor_rss, 0.0),
+      record_derivative_windows(est.time, est.displacement),
+      profile_scales(
+          est,
+          run_extended_slip(b.state.base, b.state.ext,
+                            deflections_from_relative(b.state.base, b.state.rho, b.state.ext), est),
+          b.state.ext.reference_force),
+      noise_floor_percent(val.force)};
 
   if (o.baseline == "lugre") {
     std::optional<Finding> nonlocal = fit_lugre_baseline(c, b, dx);

@@ -93,9 +93,8 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
   t.fit.estimation_percent = percent(c.est.force, t.result.rss);
   // The validation record is only consulted (rule c) when rules a and b pass.
   t.fit.validation_percent = std::numeric_limits<double>::quiet_NaN();
-  if (accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation,
-                         s.validation - 1.0, phi)
-                      .passes_estimation_rules())
+  if (accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation, s.validation - 1.0, phi)
+          .passes_estimation_rules())
     t.fit.validation_percent = extended_validation_percent(t.result.base, t.result.ext, c.val);
   t.fit.verdict = accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation,
                          t.fit.validation_percent, phi);
@@ -233,10 +232,11 @@ Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double
       reference > 0.0 && v.required == reference && v.drop > std::max(noise, share);
   v.validation_before = val0;
   v.validation_after = val1;
-  v.validation_required = val0 - o.min_excess_share * std::max(val0 - c.validation_floor_percent, 0.0);
-  v.validation = std::isnan(val1)                  ? Verdict::Validation::not_evaluated
+  v.validation_required =
+      val0 - o.min_excess_share * std::max(val0 - c.validation_floor_percent, 0.0);
+  v.validation = std::isnan(val1)               ? Verdict::Validation::not_evaluated
                  : val1 < v.validation_required ? Verdict::Validation::falls
-                                                  : Verdict::Validation::does_not_fall;
+                                                : Verdict::Validation::does_not_fall;
   return v;
 }
 
@@ -361,7 +361,8 @@ Chain backward_pass(const Context& c, Chain chain) {
       // piece as it was, it is judged at the better of the two.
       ExtensionParameters<double> start = full.ext;
       std::vector<double> reduced;
-      f.ext.for_each_parameter([&](Effect, std::string_view, const double& x) { reduced.push_back(x); });
+      f.ext.for_each_parameter(
+          [&](Effect, std::string_view, const double& x) { reduced.push_back(x); });
       std::size_t j = 0;
       start.for_each_parameter([&](Effect pe, std::string_view, double& x) {
         if (without.has(pe)) x = reduced[j++];

@@ -118,7 +118,8 @@ struct SlipFamily {
   void set_state(Extended<MaxwellSlip<T>>& model, const T* theta, const T* s) const {
     using std::exp;
     const std::size_t m = p.size();
-    // Relative to the centre of each operator's box, a Delta_i with an asymmetry a (extensions.hpp).
+    // Relative to the centre of each operator's box, a Delta_i with an asymmetry a
+    // (extensions.hpp).
     const T a = model.extensions().asymmetry ? model.extensions().asymmetry->asymmetry : T(0);
     std::vector<T> d(m);
     for (std::size_t i = 0; i < m; ++i)

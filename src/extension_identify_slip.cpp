@@ -25,9 +25,10 @@ struct ProfileContext {
 ProfileContext profile_context(const Record& r, const ExtendedSlipFit& cur) {
   return {
       record_derivative_windows(r.time, r.displacement),
-      profile_scales(
-          r, run_extended_slip(cur.base, cur.ext, deflections_from_relative(cur.base, cur.rho, cur.ext), r),
-          cur.ext.reference_force)};
+      profile_scales(r,
+                     run_extended_slip(cur.base, cur.ext,
+                                       deflections_from_relative(cur.base, cur.rho, cur.ext), r),
+                     cur.ext.reference_force)};
 }
 
 // A fit of the current pieces and `start` (`profiled` started by its profile, the stiffnesses and

@@ -695,8 +695,8 @@ std::string parameter_interval(const Json& finding, const std::string& name, con
   if (finding.contains("intervals") && finding["intervals"].contains(name)) {
     const Json& i = finding["intervals"][name];
     if (i.is_array() && i.size() == 2 && i[0].is_number() && i[1].is_number())
-      return "[" + format_number(i[0].get<double>(), 4) + ", " + format_number(i[1].get<double>(), 4) +
-             "]";
+      return "[" + format_number(i[0].get<double>(), 4) + ", " +
+             format_number(i[1].get<double>(), 4) + "]";
     return "no standard error";
   }
   if (v.is_object()) return interval(v);

@@ -87,7 +87,8 @@ Signals signals_of(const MaxwellSlipParameters<double>& base,
                    const ExtensionParameters<double>& ext, const Record& r,
                    const std::vector<double>& rho) {
   const std::size_t n = r.size();
-  const ExtendedSlipRun run = run_extended_slip(base, ext, deflections_from_relative(base, rho, ext), r);
+  const ExtendedSlipRun run =
+      run_extended_slip(base, ext, deflections_from_relative(base, rho, ext), r);
   Signals s;
   s.f0 = ext.reference_force > 0 ? ext.reference_force : base.sliding_force();
   s.e.resize(n);

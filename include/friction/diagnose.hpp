@@ -216,11 +216,11 @@ struct Verdict {
     lag_below_one_sample,    ///< frictional-lag's lag fitted below one sample period
     no_better_than_viscous,  ///< frictional-lag with its companion no better than viscous (BIC)
   };
-  bool fitted = true;             ///< false: the fit found no usable solution
-  std::string failure;            ///< what the fit threw (empty: it ended unusable)
-  double delta_bic = 0;           ///< rule (a): BIC(candidate) - BIC(current)
-  double drop = 0;                ///< rule (b): RSS0 - RSS1 [N^2]
-  double required = 0;            ///< rule (b): what the drop must exceed [N^2]
+  bool fitted = true;    ///< false: the fit found no usable solution
+  std::string failure;   ///< what the fit threw (empty: it ended unusable)
+  double delta_bic = 0;  ///< rule (a): BIC(candidate) - BIC(current)
+  double drop = 0;       ///< rule (b): RSS0 - RSS1 [N^2]
+  double required = 0;   ///< rule (b): what the drop must exceed [N^2]
   /// Lag-one correlation of the candidate's estimation residual (AR(1) phi, noise_colour.hpp):
   /// rules (a) and (b) count (1 - phi)/(1 + phi) of the samples as independent.
   double residual_colour = 0;
@@ -232,17 +232,15 @@ struct Verdict {
   std::string at_bound;
   bool operator_limited = false;  ///< (b) failed only on what one more operator buys
   Validation validation = Validation::not_evaluated;
-  double validation_before = 0;  ///< RSS/SSS % of the current model (rule c)
-  double validation_after = 0;   ///< RSS/SSS % of the candidate (rule c)
+  double validation_before = 0;    ///< RSS/SSS % of the current model (rule c)
+  double validation_after = 0;     ///< RSS/SSS % of the candidate (rule c)
   double validation_required = 0;  ///< rule (c): what validation_after must be below [%]
   Nested nested = Nested::none;
 
   bool bic_falls() const { return delta_bic < 0; }
   bool drop_exceeds() const { return drop > required; }
   /// Rules (a) and (b): the validation record may be consulted.
-  bool passes_estimation_rules() const {
-    return fitted && bic_falls() && drop_exceeds();
-  }
+  bool passes_estimation_rules() const { return fitted && bic_falls() && drop_exceeds(); }
   /// All three rules and the nesting checks, whatever the edges.
   bool earns_place_but_for_an_edge() const {
     return passes_estimation_rules() && validation == Validation::falls && nested == Nested::none;

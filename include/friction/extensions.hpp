@@ -591,8 +591,8 @@ class Extended {
 /// The displacement at t_k - D, linearly interpolated between samples and held at the first /
 /// last sample outside the record (header: Delay); x itself when D = 0.
 template <typename T>
-void delayed_displacement_into(std::span<const double> time, std::span<const T> x,
-                               const T& delay, std::vector<T>& xs) {
+void delayed_displacement_into(std::span<const double> time, std::span<const T> x, const T& delay,
+                               std::vector<T>& xs) {
   const std::size_t n = x.size();
   xs.assign(x.begin(), x.end());
   if (value_of(delay) == 0.0) return;
