@@ -317,7 +317,13 @@ Chain forward_pass(const Context& c, const State& start, const std::vector<Effec
     const ExtensionParameters<double> without = without_piece(last, edge->first);
     const ExtendedSlipFit f =
         fit_extended_slip(c.est, last.base, last.rho, without, false, c.options.max_iterations);
-    if (!f.ok) break;
+    if (!f.ok) {
+      chain.warnings.push_back("kept " + std::string(effect_name(edge->first)) + " with its " +
+                               edge->second +
+                               " on the edge of its range: the model without it could not be "
+                               "fitted (the finding is doubtful)");
+      break;
+    }
     reduced.base = f.base;
     reduced.rho = f.rho;
     reduced.ext = f.ext;
