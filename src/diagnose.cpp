@@ -39,13 +39,6 @@ double sum_of_squares(const std::vector<double>& v) {
   return s;
 }
 
-// N sigma^2 over the sum of squares, sigma the white-noise estimate (RSS/SSS % of a perfect model).
-double noise_floor_percent(const std::vector<double>& force) {
-  const double sigma = estimate_white_noise_sigma(force);
-  return 100.0 * static_cast<double>(force.size()) * sigma * sigma /
-         std::max(sum_of_squares(force), 1e-300);
-}
-
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
@@ -83,7 +76,7 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
           run_extended_slip(b.state.base, b.state.ext,
                             deflections_from_relative(b.state.base, b.state.rho, b.state.ext), est),
           b.state.ext.reference_force),
-      noise_floor_percent(val.force)};
+      noise_floor_rss_sss_percent(val.force, estimate_white_noise_sigma(val.force))};
 
   if (o.baseline == "lugre") {
     std::optional<Finding> nonlocal = fit_lugre_baseline(c, b, dx);

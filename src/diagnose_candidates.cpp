@@ -54,6 +54,16 @@ double operator_reference(const Context& c, double rss0) {
   return c.operator_drop * std::min(1.0, std::max(rss0 - c.floor_rss, 0.0) / c.baseline_excess);
 }
 
+// A state takes a fit's model, its estimation RSS, its edges and the validation error given.
+void take_fit(State& s, const ExtendedSlipFit& f, double validation) {
+  s.base = f.base;
+  s.rho = f.rho;
+  s.ext = f.ext;
+  s.rss = f.rss;
+  s.validation = validation;
+  s.at_bound = f.at_bound;
+}
+
 // One candidate fitted on top of `s` from the start its evidence gives; validated only when
 // rules (a) and (b) pass.
 Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEvidence& ev) {
@@ -154,12 +164,7 @@ State accepted(const Context& c, const State& s, const Tried& t) {
   bool restarted = false;
   const ExtendedSlipFit g = extension_detail::restart_base(c.est, t.result, o, restarted);
   if (restarted) {
-    next.base = g.base;
-    next.rho = g.rho;
-    next.ext = g.ext;
-    next.rss = g.rss;
-    next.validation = extended_validation_percent(g.base, g.ext, c.val);
-    next.at_bound = g.at_bound;
+    take_fit(next, g, extended_validation_percent(g.base, g.ext, c.val));
   }
   return next;
 }
@@ -187,15 +192,10 @@ std::vector<State> rebuild_chain(const Context& c, const State& first, const Sta
     }
     const bool last = i + 1 == full.order.size();
     const ExtendedSlipFit f =
-        last ? ExtendedSlipFit{full.base, full.rho, full.ext, full.rss, true, {}}
+        last ? ExtendedSlipFit{full.base, full.rho, full.ext, full.rss, true, full.at_bound}
              : fit_extended_slip(c.est, full.base, full.rho, sub, false, c.options.max_iterations);
     State st;
-    st.base = f.base;
-    st.rho = f.rho;
-    st.ext = f.ext;
-    st.rss = f.rss;
-    st.validation = last ? full.validation : extended_validation_percent(f.base, f.ext, c.val);
-    st.at_bound = last ? full.at_bound : f.at_bound;
+    take_fit(st, f, last ? full.validation : extended_validation_percent(f.base, f.ext, c.val));
     st.order.assign(full.order.begin(), full.order.begin() + static_cast<std::ptrdiff_t>(i + 1));
     states.push_back(st);
   }
@@ -324,12 +324,7 @@ Chain forward_pass(const Context& c, const State& start, const std::vector<Effec
                                "fitted (the finding is doubtful)");
       break;
     }
-    reduced.base = f.base;
-    reduced.rho = f.rho;
-    reduced.ext = f.ext;
-    reduced.rss = f.rss;
-    reduced.validation = extended_validation_percent(f.base, f.ext, c.val);
-    reduced.at_bound = f.at_bound;
+    take_fit(reduced, f, extended_validation_percent(f.base, f.ext, c.val));
     reduced.order.erase(std::find(reduced.order.begin(), reduced.order.end(), edge->first));
     chain.warnings.push_back("removed " + std::string(effect_name(edge->first)) + ": its " +
                              edge->second +
@@ -376,12 +371,7 @@ Chain backward_pass(const Context& c, Chain chain) {
       const ExtendedSlipFit g =
           fit_extended_slip(c.est, f.base, f.rho, start, false, c.options.max_iterations);
       if (g.ok && g.rss < full.rss) {
-        full.base = g.base;
-        full.rho = g.rho;
-        full.ext = g.ext;
-        full.rss = g.rss;
-        full.validation = extended_validation_percent(g.base, g.ext, c.val);
-        full.at_bound = g.at_bound;
+        take_fit(full, g, extended_validation_percent(g.base, g.ext, c.val));
         chain.removed = true;  // the chain is recomputed for the refitted model
       }
     }
@@ -399,11 +389,7 @@ Chain backward_pass(const Context& c, Chain chain) {
                       full.validation, v_without);
         chain.warnings.push_back("backward pass removed " + std::string(effect_name(e)) + ": " +
                                  v.to_text() + figures);
-        full.base = f.base;
-        full.rho = f.rho;
-        full.ext = f.ext;
-        full.rss = f.rss;
-        full.validation = v_without;
+        take_fit(full, f, v_without);
         full.order.erase(full.order.begin() + static_cast<std::ptrdiff_t>(i));
         chain.removed = true;
         i = 0;
