@@ -33,12 +33,6 @@ void warn_if_short_of_operators(Diagnosis& dx) {
     }
 }
 
-double sum_of_squares(const std::vector<double>& v) {
-  double s = 0;
-  for (double e : v) s += e * e;
-  return s;
-}
-
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }

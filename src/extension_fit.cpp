@@ -10,18 +10,9 @@
 
 #include "friction/identification.hpp"
 #include "friction/initial_state.hpp"
+#include "friction/metrics.hpp"
 
 namespace friction {
-
-namespace {
-
-double sum_sq(const std::vector<double>& v) {
-  double s = 0;
-  for (double e : v) s += e * e;
-  return s;
-}
-
-}  // namespace
 
 // ---------------------------------------------------------------------------------------------
 // Free run of an extended Maxwell Slip model in double, with the regime of every sample.  The
@@ -125,7 +116,7 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   rho.resize(m, 0.0);
   for (double& v : rho) v = std::clamp(v, -1.0, 1.0);
 
-  double rms = std::sqrt(sum_sq(r.force) / static_cast<double>(r.size()));
+  double rms = std::sqrt(sum_of_squares(r.force) / static_cast<double>(r.size()));
   auto* functor = new ExtendedCost{&r, m, ext0, rms > 0 ? 1.0 / rms : 1.0,
                                    record_derivative_windows(r.time, r.displacement)};
   auto* cost = new ceres::DynamicAutoDiffCostFunction<ExtendedCost, 16>(functor);

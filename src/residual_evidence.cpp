@@ -18,12 +18,6 @@ namespace friction {
 
 namespace {
 
-double sum_sq(const std::vector<double>& v) {
-  double s = 0;
-  for (double e : v) s += e * e;
-  return s;
-}
-
 std::string fmt(double v, int precision = 3) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.*g", precision, v);
@@ -167,7 +161,7 @@ void time_shifts(const Signals& s, const Record& r, ResidualEvidence& ev) {
   const long lmax = static_cast<long>(std::min<std::size_t>(40, n / 20));
   std::vector<double> dx(n, 0.0);
   for (std::size_t k = 1; k < n; ++k) dx[k] = r.displacement[k] - r.displacement[k - 1];
-  const double se = std::sqrt(sum_sq(s.e)), sd = std::sqrt(sum_sq(dx));
+  const double se = std::sqrt(sum_of_squares(s.e)), sd = std::sqrt(sum_of_squares(dx));
   double best_rss = std::numeric_limits<double>::infinity();
   long best = 0;
   std::vector<double> shift_rss;
@@ -256,7 +250,7 @@ ResidualEvidence gather_evidence(const MaxwellSlipParameters<double>& base,
                                  const std::vector<double>& rho) {
   const Signals s = signals_of(base, ext, r, rho);
   ResidualEvidence ev;
-  ev.rss_sss_percent = 100.0 * sum_sq(s.e) / sum_sq(r.force);
+  ev.rss_sss_percent = 100.0 * sum_of_squares(s.e) / sum_of_squares(r.force);
   ev.noise_sigma = estimate_white_noise_sigma(r.force);
   ev.noise_floor_percent = noise_floor_rss_sss_percent(r.force, ev.noise_sigma);
   const std::vector<double> speeds = regime_statistics(s, ev);
@@ -315,7 +309,7 @@ double extended_validation_percent(const MaxwellSlipParameters<double>& base,
   for (std::size_t k = 0; k < record.size(); ++k)
     rss += (record.force[k] - run.force[k]) * (record.force[k] - run.force[k]);
   if (simulated) *simulated = run.force;
-  return 100.0 * rss / sum_sq(record.force);
+  return 100.0 * rss / sum_of_squares(record.force);
 }
 
 Json ResidualEvidence::to_json() const {

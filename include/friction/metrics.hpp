@@ -103,6 +103,13 @@ inline double estimate_white_noise_sigma(std::span<const double> signal, int ord
   return 1.4826 * mad / std::sqrt(binom);
 }
 
+/// Sum of squares of a signal (the SSS of RSS/SSS, or an RSS of a residual).
+inline double sum_of_squares(std::span<const double> v) {
+  double s = 0;
+  for (double e : v) s += e * e;
+  return s;
+}
+
 /// RSS/SSS [%] that white noise of standard deviation `sigma` alone gives on `force`:
 /// 100 * N sigma^2 / sum F^2, the floor a perfect model reaches on a noisy record.
 inline double noise_floor_rss_sss_percent(std::span<const double> force, double sigma) {
