@@ -49,7 +49,9 @@ double one_more_operator(const Record& est, const IdentifiedModel& nlr, std::siz
 
 Baseline fit_baseline(const Record& est, const Record& val, const DiagnoseOptions& o) {
   const auto started = std::chrono::steady_clock::now();
-  Baseline b{identify_model("maxwell-slip", est, o.method), {}, 0.0, {}, 0.0};
+  MethodOptions base = o.method;
+  base.base_without_dominant_inertia = true;  // a dominant m·a is a finding, not a failure
+  Baseline b{identify_model("maxwell-slip", est, base), {}, 0.0, {}, 0.0};
   b.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   const auto& ms = std::get<Extended<MaxwellSlip<double>>>(b.nlr.model.variant());
   State& s = b.state;

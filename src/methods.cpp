@@ -2,11 +2,14 @@
 
 #include <chrono>
 #include <cmath>
+#include <sstream>
 
 #include "friction/dnlrx_identification.hpp"
 #include "friction/initial_state.hpp"
 #include "friction/lg.hpp"
+#include "friction/metrics.hpp"
 #include "friction/nlr.hpp"
+#include "friction/signals.hpp"
 
 namespace friction {
 
@@ -108,10 +111,59 @@ IdentifiedModel identify_model(const std::string& type_or_name, const Record& r,
   if (o.extensions.empty()) return identify_base(type, r, o);
   // A request the base cannot carry fails before the (long) base identification.
   check_extension_request(type, o.extensions, r);
-  return with_extensions(identify_base(type, r, o), r, o);
+  MethodOptions base = o;
+  base.base_without_dominant_inertia = true;
+  return with_extensions(identify_base(type, r, base), r, o);
 }
 
 namespace {
+
+// NLR on the record, unless an inertial force dominates it: the sliding force regressed on
+// sgn v, 1, v and a (signals.hpp) finds m > 0 by more than 4 standard errors and an m·a whose RMS
+// exceeds the friction level c.  An m·a term is in phase with -x in an oscillation: it turns the
+// hysteresis loops over, and NLR then ends with every stiffness at zero or with a relay that
+// explains nothing.  With MethodOptions::base_without_dominant_inertia the base is then fitted to
+// F - m·a, as a start for pieces that model the inertia; without it the result (or the error)
+// says what dominates.
+NlrResult maxwell_slip_base(const Record& r, const NlrOptions& n, const MethodOptions& o) {
+  const SlidingForceRegression reg = sliding_force_regression(r.time, r.displacement, r.force);
+  double inertial_ms = 0;
+  for (std::size_t k = 0; k < reg.acceleration.size(); ++k)
+    inertial_ms += reg.mass * reg.mass * reg.acceleration[k] * reg.acceleration[k];
+  const double inertial_rms =
+      reg.acceleration.empty() ? 0.0 : std::sqrt(inertial_ms / reg.acceleration.size());
+  const bool dominant =
+      reg.samples > 0 && reg.mass > 4.0 * reg.mass_se && inertial_rms > std::abs(reg.coulomb);
+  std::ostringstream what;
+  what << "an inertial force m·a dominates the force (m = " << reg.mass << " +/- " << reg.mass_se
+       << " kg by regression of the sliding force on sgn v, 1, v and a; RMS " << inertial_rms
+       << " N against a friction level of " << std::abs(reg.coulomb) << " N)";
+  if (dominant && o.base_without_dominant_inertia) {
+    std::vector<double> corrected(r.force);
+    for (std::size_t k = 0; k < corrected.size(); ++k)
+      corrected[k] -= reg.mass * reg.acceleration[k];
+    NlrResult res = identify_maxwell_slip(r.time, r.displacement, corrected, n);
+    // The figures of the report are those of the force as recorded.
+    res.report.estimation = compute_errors(r.force, res.report.estimation_simulated);
+    res.report.warnings.push_back(what.str() +
+                                  ": the base was fitted to the force less that term, so that "
+                                  "the pieces can start from it");
+    return res;
+  }
+  try {
+    NlrResult res = identify_maxwell_slip(r.time, r.displacement, r.force, n);
+    if (dominant)
+      res.report.warnings.push_back(what.str() +
+                                    " that the base cannot carry: identify with --extension "
+                                    "inertia, or run diagnose");
+    return res;
+  } catch (const NumericalError& e) {
+    if (!dominant) throw;
+    throw NumericalError(std::string(e.what()) + ": " + what.str() +
+                         " that the base cannot carry: identify with --extension inertia, or run "
+                         "diagnose");
+  }
+}
 
 IdentifiedModel identify_base(const std::string& type, const Record& r, const MethodOptions& o) {
   const ExtensionParameters<double> none;
@@ -121,7 +173,7 @@ IdentifiedModel identify_base(const std::string& type, const Record& r, const Me
     n.operators = o.operators;
     n.global_stage = o.global_stage;
     n.seed = o.seed;
-    NlrResult res = identify_maxwell_slip(r.time, r.displacement, r.force, n);
+    NlrResult res = maxwell_slip_base(r, n, o);
     Json init = values_json(res.report.initial_deflections, "m");
     return {AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(res.parameters), none)),
             std::move(res.report), std::move(init), Json()};

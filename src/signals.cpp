@@ -6,7 +6,10 @@
 #include <cstdio>
 #include <sstream>
 
+#include <Eigen/Dense>
+
 #include "friction/error.hpp"
+#include "friction/sample_derivatives.hpp"
 
 namespace friction {
 namespace {
@@ -176,8 +179,64 @@ ForceSignEstimate estimate_force_sign(std::span<const double> time,
   if (e.difference != 0.0 && std::abs(e.difference) > 4.0 * e.standard_error) {
     e.decided = true;
     e.sign = e.difference > 0.0 ? 1 : -1;
+    return e;
+  }
+  // The medians' spread includes the force's own variation while sliding; the regression takes
+  // the parts that vary it out (header comment).
+  const SlidingForceRegression reg = sliding_force_regression(time, displacement, force);
+  if (reg.samples > 0 && reg.coulomb != 0.0 && std::abs(reg.coulomb) > 4.0 * reg.coulomb_se) {
+    e.difference = 2.0 * reg.coulomb;
+    e.standard_error = 2.0 * reg.coulomb_se;
+    e.decided = true;
+    e.sign = reg.coulomb > 0.0 ? 1 : -1;
   }
   return e;
+}
+
+SlidingForceRegression sliding_force_regression(std::span<const double> time,
+                                                std::span<const double> displacement,
+                                                std::span<const double> force) {
+  SlidingForceRegression out;
+  const std::size_t n = std::min({time.size(), displacement.size(), force.size()});
+  constexpr Eigen::Index p = 4;
+  // Five sliding samples per coefficient at the least (and enough for sample_derivatives).
+  if (n < 5 * static_cast<std::size_t>(p)) return out;
+  SampleDerivatives d = sample_derivatives(time.first(n), displacement.first(n));
+  std::vector<double> speed(n);
+  for (std::size_t k = 0; k < n; ++k) speed[k] = std::abs(d.velocity[k]);
+  const double threshold = 0.2 * quantile(speed, 0.98);
+  out.acceleration = std::move(d.acceleration);
+  if (!(threshold > 0.0)) return out;
+  std::vector<std::size_t> rows;
+  for (std::size_t k = 0; k < n; ++k)
+    if (speed[k] > threshold) rows.push_back(k);
+  if (rows.size() < 5 * static_cast<std::size_t>(p)) return out;
+  Eigen::MatrixXd a(static_cast<Eigen::Index>(rows.size()), p);
+  Eigen::VectorXd f(a.rows());
+  for (Eigen::Index i = 0; i < a.rows(); ++i) {
+    const std::size_t k = rows[static_cast<std::size_t>(i)];
+    a.row(i) << (d.velocity[k] > 0 ? 1.0 : -1.0), 1.0, d.velocity[k], out.acceleration[k];
+    f(i) = force[k];
+  }
+  // Columns scaled to unit norm so that the rank decision does not depend on units.
+  const Eigen::VectorXd scale = a.colwise().norm().transpose().cwiseMax(1e-300);
+  const Eigen::MatrixXd as = a * scale.cwiseInverse().asDiagonal();
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(as);
+  if (qr.rank() < p) return out;
+  const Eigen::VectorXd c = qr.solve(f);
+  const double dof = static_cast<double>(a.rows() - p);
+  const double s2 = (f - as * c).squaredNorm() / dof;
+  const Eigen::MatrixXd cov = s2 * (as.transpose() * as).inverse();
+  const auto coefficient = [&](Eigen::Index j, double& value, double& se) {
+    value = c(j) / scale(j);
+    se = std::sqrt(std::max(cov(j, j), 0.0)) / scale(j);
+  };
+  coefficient(0, out.coulomb, out.coulomb_se);
+  coefficient(1, out.offset, out.offset_se);
+  coefficient(2, out.viscous, out.viscous_se);
+  coefficient(3, out.mass, out.mass_se);
+  out.samples = rows.size();
+  return out;
 }
 
 std::optional<double> signal_quantum(std::span<const double> signal) {

@@ -2,6 +2,7 @@
 // end-to-end run with its JSON contract (cli.md).  The effect studies are test_diagnose_effects.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "diagnose_support.hpp"
@@ -142,6 +143,29 @@ void drop_timings(Json& j) {
   }
 }
 }  // namespace
+
+// An inertial force many times the slip level: the baseline alone cannot be fitted (it would
+// need negative stiffness), so diagnose fits it to the force less a regressed m·a and must then
+// name the inertia, and only it.
+TEST(Diagnose, ADominantInertiaIsNamedWhenTheBaselineAloneCannotBeFitted) {
+  Excitation ex;
+  const double sigma = 2e-3, mass = 150.0;
+  const Record est = with_noise(make_clean(Injected::inertia, mass, ex, 3000, 0.0), sigma, 21);
+  const Record val = with_noise(make_clean(Injected::inertia, mass, ex, 3000, 3.0), sigma, 22);
+  DiagnoseOptions o;
+  o.method.max_operators = 6;
+  const Diagnosis d = diagnose(est, val, o);
+  EXPECT_TRUE(std::any_of(d.warnings.begin(), d.warnings.end(), [](const std::string& w) {
+    return w.find("the base was fitted to the force less that term") != std::string::npos;
+  })) << "the baseline was fitted without the inertia taken out";
+  ASSERT_EQ(d.findings.size(), 1u) << d.to_table();
+  EXPECT_EQ(d.findings[0].name(), "inertia");
+  ASSERT_TRUE(d.final_model.has_value());
+  const auto& ext = std::get<Extended<MaxwellSlip<double>>>(d.final_model->variant());
+  ASSERT_TRUE(ext.extensions().inertia.has_value());
+  EXPECT_NEAR(ext.extensions().inertia->mass, mass, 0.02 * mass);
+  EXPECT_LT(d.final_validation_percent, 0.01);
+}
 
 TEST(Diagnose, TheSameDiagnosisOnOneThreadAndOnSeveral) {
   Excitation ex;

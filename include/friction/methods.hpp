@@ -51,6 +51,12 @@ struct MethodOptions {
   unsigned seed = 1;               ///< seeds of the global stages (results are reproducible)
   std::vector<Effect> extensions;  ///< pieces of methods.md 7 to identify with the base
   ExtensionFitOptions extension_fit;
+  /// Maxwell Slip base: when the force as recorded wants every stiffness negative because an
+  /// inertial force m·a dominates it (the regression of the sliding force on sgn v, 1, v, a finds
+  /// m > 0 by more than 4 standard errors), fit the base to F - m·a instead of failing, and say so
+  /// in a warning.  Set by diagnose and by identification with extensions, whose pieces then
+  /// model the inertia; a plain identification fails with the mass in its message.
+  bool base_without_dominant_inertia = false;
 };
 
 /// An identified model and everything the method reports about it.

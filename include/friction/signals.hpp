@@ -19,7 +19,17 @@
 // decides only when it is clear of the scatter: |D| > 4 standard errors of the difference of the
 // medians (1.2533 · spread / sqrt(n) per group, spread = 1.4826 · MAD of the group's forces, so
 // real variation of the sliding force counts as scatter too); otherwise (or with fewer than 5
-// sliding samples per direction used) the sign is undecidable, +1 is kept and a warning says so.
+// sliding samples per direction used) the medians do not decide.
+//
+// A force that varies strongly while sliding (a drive's m·a many times the Coulomb level, a steep
+// viscous term) widens the medians' spread until they cannot decide.  The sliding force is then
+// regressed on what varies it (sliding_force_regression below):
+//
+//   F_k = c sgn(v_k) + f0 + b v_k + m a_k + e_k     over the sliding samples,
+//
+// with v and a at the sample instants (sample_derivatives.hpp), and D = 2 c, its standard error
+// 2 se(c) from the residual scatter; the same 4-standard-error rule decides.  When neither decides,
+// +1 is kept and a warning says so.
 //
 // Irregular sampling.  The nominal period Ts is the median interval; an interval is a *gap* when
 // |dt - Ts| > tol · Ts (tol = 1 % by default).  The models step with each interval's own dt
@@ -93,6 +103,18 @@ struct ForceSignEstimate {
   double difference = 0.0;          ///< D [N] (see the header comment)
   double standard_error = 0.0;      ///< its standard error [N]
 };
+
+/// The sliding force regressed on sgn(v), 1, v and a (see the header comment); the coefficients in
+/// the order coulomb, offset, viscous, mass, each with its standard error.
+struct SlidingForceRegression {
+  std::size_t samples = 0;  ///< sliding samples used (0: too few, nothing estimated)
+  double coulomb = 0, offset = 0, viscous = 0, mass = 0;
+  double coulomb_se = 0, offset_se = 0, viscous_se = 0, mass_se = 0;
+  std::vector<double> acceleration;  ///< a(t_k) over the whole record [m/s^2]
+};
+SlidingForceRegression sliding_force_regression(std::span<const double> time,
+                                                std::span<const double> displacement,
+                                                std::span<const double> force);
 
 /// Decide the force sign of a record (see the header comment).
 ForceSignEstimate estimate_force_sign(std::span<const double> time,
