@@ -117,11 +117,39 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
   return t;
 }
 
+// The 5 % quantile of the speed while the fitted model slides on the estimation record.
+double lowest_sliding_speed(const Context& c, const ExtendedSlipFit& f) {
+  const ExtendedSlipRun run =
+      run_extended_slip(f.base, f.ext, deflections_from_relative(f.base, f.rho, f.ext), c.est);
+  std::vector<double> speeds;
+  for (std::size_t k = 0; k < run.velocity.size(); ++k)
+    if (run.sliding[k] && run.velocity[k] != 0.0) speeds.push_back(std::abs(run.velocity[k]));
+  if (speeds.empty()) return 0.0;
+  const auto q = speeds.begin() + static_cast<std::ptrdiff_t>(0.05 * (speeds.size() - 1));
+  std::nth_element(speeds.begin(), q, speeds.end());
+  return *q;
+}
+
 // Nested candidates (diagnose.hpp): a velocity lag that ends at (almost) no lag is its velocity
-// piece, and a lag fitted with its own companion must beat the companion alone (BIC).
+// piece, and a lag fitted with its own companion must beat the companion alone (BIC); a Stribeck
+// curve must fall where the record slides.
 void check_nested(const Context& c, const State& s, std::vector<Tried>& round) {
   const double ts = (c.est.time.back() - c.est.time.front()) / static_cast<double>(c.n - 1);
   for (auto& t : round) {
+    if (t.fit.effect == Effect::stribeck && t.fit.verdict.earns_place_but_for_an_edge() &&
+        t.result.ext.stribeck) {
+      const auto& curve = *t.result.ext.stribeck;
+      const double v05 = lowest_sliding_speed(c, t.result);
+      const double remaining =
+          std::exp(-std::pow(v05 / curve.stribeck_velocity, curve.stribeck_exponent));
+      const double visible =
+          std::abs(curve.static_force - t.result.ext.reference_force) * remaining;
+      if (visible < c.sigma) {
+        t.fit.earns_place = false;
+        t.fit.verdict.nested = Verdict::Nested::drop_below_sliding;
+      }
+      continue;
+    }
     const EffectInfo& info = effect_info(t.fit.effect);
     if (info.kind != EffectKind::velocity_lag || !t.fit.earns_place) continue;
     const Tried* companion = nullptr;

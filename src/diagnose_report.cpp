@@ -200,6 +200,9 @@ std::string Verdict::to_text() const {
   if (!fitted) return failure.empty() ? "fit failed" : "fit failed: " + failure;
   if (nested == Nested::lag_below_one_sample)
     return "lag_time fitted below one sample: no lag (the velocity piece covers it)";
+  if (nested == Nested::drop_below_sliding)
+    return "what is left of the Stribeck drop at the record's lowest sliding speeds (5 % "
+           "quantile) is below the force noise: it corrects the presliding, not the sliding force";
   if (nested == Nested::no_better_than_viscous)
     return "no better than the viscous piece alone (BIC)";
   std::ostringstream s;
