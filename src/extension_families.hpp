@@ -487,12 +487,17 @@ struct FreeCovariance {
   std::vector<std::size_t> columns;  // free columns: 0..nt-1 block 0, nt.. block 1
   bool rank_deficient = false;
   bool ok = false;
+  // Per position in `columns`: estimable on this record (rank-deficient fits: see covariance_at).
+  std::vector<char> estimable;
   ResidualColour colour;  // of the residual at the optimum
-  // Position of block-0 column c in the covariance; -1 when it is not free (or not computed).
+  // Position of block-0 column c in the covariance; -1 when it is not free, not estimable or not
+  // computed.
   std::ptrdiff_t column_of(std::size_t c) const {
     if (!ok) return -1;
     const auto it = std::find(columns.begin(), columns.end(), c);
-    return it == columns.end() ? -1 : it - columns.begin();
+    if (it == columns.end()) return -1;
+    const auto q = it - columns.begin();
+    return estimable[static_cast<std::size_t>(q)] ? q : -1;
   }
 };
 
@@ -524,23 +529,40 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
           c < nt ? j0[k * nt + c] : j1[k * ns + (c - nt)];
     }
   if (!J.allFinite()) return out;
+  // Columns scaled to unit norm (a column without any effect keeps scale 1 and stays zero).
   Eigen::VectorXd d = J.colwise().norm().transpose();
   for (Eigen::Index q = 0; q < d.size(); ++q)
-    if (!(d(q) > 0)) {
-      out.rank_deficient = true;
-      return out;
-    }
+    if (!(d(q) > 0)) d(q) = 1.0;
   const Eigen::MatrixXd Js = J * d.cwiseInverse().asDiagonal();
   const Eigen::MatrixXd H = Js.transpose() * Js;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(H);
-  const double emax = eig.eigenvalues().maxCoeff(), emin = eig.eigenvalues().minCoeff();
-  if (!(emin > 1e-12 * emax)) {
-    out.rank_deficient = true;
-    return out;
+  const double emax = eig.eigenvalues().maxCoeff();
+  if (!(emax > 0)) return out;
+  // A rank-deficient fit (operators that trade off against each other, a piece that imitates the
+  // base) still determines every parameter that has no part in the directions the data do not
+  // see: for such a parameter the pseudo-inverse gives its variance exactly, whatever the others
+  // do (the estimable functions of a linear model).  Parameter q is estimable when its unit vector
+  // lies outside the null space, sum over null eigenvectors of v_q^2 < 1e-6; the others get no
+  // standard error.
+  const Eigen::VectorXd& ev = eig.eigenvalues();
+  Eigen::VectorXd inverse = Eigen::VectorXd::Zero(ev.size());
+  out.estimable.assign(p, 1);
+  Eigen::VectorXd leverage = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p));
+  for (Eigen::Index e = 0; e < ev.size(); ++e) {
+    if (ev(e) > 1e-12 * emax) {
+      inverse(e) = 1.0 / ev(e);
+    } else {
+      out.rank_deficient = true;
+      leverage += eig.eigenvectors().col(e).cwiseAbs2();
+    }
   }
-  const double s2 = sum_sq(residual) / static_cast<double>(n - p);
-  const Eigen::MatrixXd Hinv = eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() *
-                               eig.eigenvectors().transpose();
+  for (std::size_t q = 0; q < p; ++q)
+    if (leverage(static_cast<Eigen::Index>(q)) >= 1e-6) out.estimable[q] = 0;
+  // The degrees of freedom the fit used: its rank, not its column count.
+  const auto rank = static_cast<std::size_t>((inverse.array() > 0).count());
+  const double s2 = sum_sq(residual) / static_cast<double>(n - rank);
+  const Eigen::MatrixXd Hinv =
+      eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
   out.colour = residual_colour(residual);
   ColouredGram gram(p, out.colour.phi);
   std::vector<double> row(p);

@@ -65,6 +65,20 @@ bool main_parameter(Effect e, std::string_view* name, double f0, double* null_va
 
 }  // namespace
 
+void note_rank_deficiency(ExtensionIdentification& res, bool rank_deficient) {
+  if (!rank_deficient) return;
+  std::string without;
+  for (const auto& e : res.estimates)
+    if (!e.available && !e.at_bound)
+      without += (without.empty() ? "" : ", ") + std::string(effect_name(e.effect)) + "." + e.name;
+  res.warnings.push_back(
+      "the joint fit's covariance is rank deficient (some parameters trade off against each other "
+      "on this record): " +
+      (without.empty() ? std::string("the pieces' standard errors are those of the estimable "
+                                     "parameters, the base's that trade off get none")
+                       : "no standard error for " + without));
+}
+
 // Warnings about the pieces: bounds and missing evidence (header comment, 3).
 void judge_evidence(ExtensionIdentification& res, const std::vector<Effect>& effects, double f0,
                     double sigmas) {

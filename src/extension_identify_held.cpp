@@ -89,13 +89,10 @@ void identify_held(ExtensionIdentification& res, Family fam, const Record& r,
   const double f0_own = own_f0(new_base);
   const JointReport rep = report_joint_fit(r, fam, f.base_theta, f.ext, f.state, free_state, f0,
                                            own_reference_ratio(f.ext, f0_own));
-  if (rep.rank_deficient)
-    res.warnings.push_back(
-        "the covariance of the fit is rank deficient (some parameters trade off against each "
-        "other on this record): no standard errors are given");
   res.estimates = rep.pieces;
   res.base_parameters = rep.base;
   res.correlation_matrix = rep.correlation;
+  note_rank_deficiency(res, rep.rank_deficient);
   res.model = AnyModel(Extended<Base>(Base(new_base), to_own_reference(f.ext, f0_own)));
   judge_evidence(res, effects, f0_own, o.evidence_sigmas);
 }

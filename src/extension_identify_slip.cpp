@@ -169,13 +169,10 @@ void identify_on_maxwell_slip(ExtensionIdentification& res,
 
   // Standard errors and intervals of [log k, log Delta, pieces] at the optimum.
   const ExtendedSlipReport rep = report_extended_slip(r, cur);
-  if (rep.rank_deficient)
-    res.warnings.push_back(
-        "the joint fit's covariance is rank deficient (some parameters trade off against each "
-        "other on this record): no standard errors are given");
   res.estimates = rep.pieces;
   res.base_parameters = rep.base;
   res.correlation_matrix = rep.correlation;
+  note_rank_deficiency(res, rep.rank_deficient);
   const double own_f0 = cur.base.sliding_force();
   res.model = AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(cur.base),
                                                      to_own_reference(cur.ext, own_f0)));

@@ -33,6 +33,10 @@ std::vector<double> state_from(const std::vector<double>& values,
 /// them.
 std::vector<Effect> velocity_pieces_first(std::vector<Effect> effects);
 
+/// A warning when the joint covariance is rank deficient, naming the pieces' parameters left
+/// without a standard error (those that trade off against others on the record).
+void note_rank_deficiency(ExtensionIdentification& res, bool rank_deficient);
+
 /// Warnings about the pieces: bounds and missing evidence (header comment, 3).
 void judge_evidence(ExtensionIdentification& res, const std::vector<Effect>& effects, double f0,
                     double sigmas);

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "diagnose_support.hpp"
+#include "friction/extension_fit.hpp"
 #include "friction/extension_identification.hpp"
 #include "friction/methods.hpp"
 
@@ -118,6 +119,41 @@ TEST(ExtensionIdentification, ADominantInertiaIsIdentifiedNotRefused) {
   const IdentifiedModel m = identify_model("maxwell-slip", r, options({Effect::inertia}));
   expect_recovered(m, "inertia", "mass", kMass, 0.02);
   EXPECT_LT(m.report.estimation.rss_sss_percent, 0.01);
+}
+
+// A rank-deficient joint covariance still gives the parameters the data determine: an operator
+// split in two equal halves at the same threshold makes the base's columns collinear, yet the
+// viscous coefficient must get exactly the standard error it has in the merged model, whose
+// force is the same and whose covariance is full rank.
+TEST(ExtensionIdentification, ARankDeficientBaseKeepsThePiecesStandardErrors) {
+  const Record r = record_with(Injected::viscous, 40.0);
+  const testing::SlipSystem truth;
+  ExtendedSlipFit merged;
+  merged.base = {truth.k, truth.delta};
+  merged.rho.assign(truth.k.size(), 0.0);
+  merged.ext.viscous = ViscousExtension<double>{40.0};
+  merged.ext.reference_force = merged.base.sliding_force();
+  merged.ok = true;
+  ExtendedSlipFit split = merged;
+  split.base.stiffness.back() /= 2;
+  split.base.stiffness.push_back(split.base.stiffness.back());
+  split.base.threshold.push_back(split.base.threshold.back());
+  split.rho.push_back(0.0);
+
+  const ExtendedSlipReport full = report_extended_slip(r, merged);
+  const ExtendedSlipReport deficient = report_extended_slip(r, split);
+  EXPECT_FALSE(full.rank_deficient);
+  EXPECT_TRUE(deficient.rank_deficient);
+  ASSERT_EQ(full.pieces.size(), 1u);
+  ASSERT_EQ(deficient.pieces.size(), 1u);
+  ASSERT_TRUE(full.pieces[0].available);
+  ASSERT_TRUE(deficient.pieces[0].available);
+  EXPECT_NEAR(deficient.pieces[0].standard_error, full.pieces[0].standard_error,
+              1e-6 * full.pieces[0].standard_error);
+  // The halves trade off: neither gets a standard error; the operators left alone keep theirs.
+  std::size_t with_error = 0;
+  for (const auto& b : deficient.base) with_error += b.standard_error > 0;
+  EXPECT_EQ(with_error, 2 * (truth.k.size() - 1));
 }
 
 TEST(ExtensionIdentification, StribeckOnMaxwellSlipIsRecovered) {

@@ -79,8 +79,11 @@
 //    over the free parameters (the base's when it was refitted, and the initial state), J the
 //    Jacobian of the free-run residuals (automatic derivatives).
 //    Parameters sitting at a bound of the fit are left out (their standard error is 0: not
-//    available).  When J^T J is rank deficient (reciprocal condition number of the column-scaled
-//    matrix below 1e-12) no standard errors are given and a warning says why; never NaN.  The
+//    available).  When J^T J is rank deficient (eigenvalues of the column-scaled matrix below
+//    1e-12 of the largest) the parameters with a part in those null directions (sum of their
+//    squared components over the null eigenvectors >= 1e-6) get no standard error, the others
+//    theirs from the pseudo-inverse (exact for estimable parameters), and a warning names the
+//    pieces' parameters left without one; never NaN.  The
 //    residual of a free run is not white where the model is imperfect, so the errors are a lower
 //    bound there.
 //    A piece is "not supported by the record" (warning "the record gives no evidence of <effect>")
