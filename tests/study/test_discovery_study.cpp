@@ -178,9 +178,7 @@ std::vector<RecordSpec> study_plan(std::uint64_t seed) {
     add(pairs[static_cast<std::size_t>(i)].first + "+" + pairs[static_cast<std::size_t>(i)].second,
         {pairs[static_cast<std::size_t>(i)].first, pairs[static_cast<std::size_t>(i)].second});
   for (int i = 1; i <= 22; ++i) {
-    char id[16];
-    std::snprintf(id, sizeof id, "none-%02d", i);
-    add(id, {});
+    add((i < 10 ? "none-0" : "none-") + std::to_string(i), {});
   }
   return plan;
 }
