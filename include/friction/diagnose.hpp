@@ -111,7 +111,7 @@
 // sigma the estimation record's white-noise level.  A curve that has fallen before that acts only
 // around reversals, where the elements' presliding describes the force: it corrects the base's
 // presliding there and is not named.  (On the discovery study's records without an effect such
-// curves bought 10-28 % of the validation misfit with a visible drop of 1e-7 to 0.1 sigma; true
+// curves bought 9-22 % of the validation error with a visible drop below 0.1 sigma; true
 // curves were fitted with 2 to 350 sigma of it.  One true curve is turned down: beside an
 // inertia, a 3 % bump whose own drop is down to 1e-4 of itself at the record's lowest sliding
 // speed, i.e. a curve the record shows at reversals only.)
