@@ -15,6 +15,7 @@
 #include "diagnose_stages.hpp"
 #include "extension_steps.hpp"
 #include "friction/identification.hpp"
+#include "friction/metrics.hpp"
 #include "friction/noise_colour.hpp"
 
 namespace friction::diagnose_detail {
@@ -124,10 +125,7 @@ double lowest_sliding_speed(const Context& c, const ExtendedSlipFit& f) {
   std::vector<double> speeds;
   for (std::size_t k = 0; k < run.velocity.size(); ++k)
     if (run.sliding[k] && run.velocity[k] != 0.0) speeds.push_back(std::abs(run.velocity[k]));
-  if (speeds.empty()) return 0.0;
-  const auto q = speeds.begin() + static_cast<std::ptrdiff_t>(0.05 * (speeds.size() - 1));
-  std::nth_element(speeds.begin(), q, speeds.end());
-  return *q;
+  return nearest_rank_quantile(std::move(speeds), 0.05);
 }
 
 // Nested candidates (diagnose.hpp): a velocity lag that ends at (almost) no lag is its velocity

@@ -17,18 +17,12 @@
 
 #include "friction/extension_fit.hpp"
 #include "friction/identification.hpp"
+#include "friction/metrics.hpp"
 #include "slip_regression.hpp"
 
 namespace friction {
 
 namespace {
-
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1));
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
-  return v[k];
-}
 
 // The columns of one grid point: deflections of unit-stiffness operators (M), then the added
 // terms the pieces hold, in the order viscous, offset, inertia.
@@ -93,8 +87,8 @@ ProfileScales profile_scales(const Record& r, const ExtendedSlipRun& run, double
     }
     if (run.sliding[k] && v > 0) sliding.push_back(v);
   }
-  s.sliding_speed_95 = quantile(sliding.size() >= 20 ? sliding : moving, 0.95);
-  s.sample_travel = quantile(steps, 0.5);
+  s.sliding_speed_95 = nearest_rank_quantile(sliding.size() >= 20 ? sliding : moving, 0.95);
+  s.sample_travel = nearest_rank_quantile(steps, 0.5);
   const auto [lo, hi] = std::minmax_element(r.displacement.begin(), r.displacement.end());
   s.travel = *hi - *lo;
   // Reversals with a hysteresis of three resolution steps (identification.hpp's detector).

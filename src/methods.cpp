@@ -127,11 +127,11 @@ namespace {
 // says what dominates.
 NlrResult maxwell_slip_base(const Record& r, const NlrOptions& n, const MethodOptions& o) {
   const SlidingForceRegression reg = sliding_force_regression(r.time, r.displacement, r.force);
-  double inertial_ms = 0;
-  for (std::size_t k = 0; k < reg.acceleration.size(); ++k)
-    inertial_ms += reg.mass * reg.mass * reg.acceleration[k] * reg.acceleration[k];
   const double inertial_rms =
-      reg.acceleration.empty() ? 0.0 : std::sqrt(inertial_ms / reg.acceleration.size());
+      reg.acceleration.empty()
+          ? 0.0
+          : std::abs(reg.mass) * std::sqrt(sum_of_squares(reg.acceleration) /
+                                           static_cast<double>(reg.acceleration.size()));
   const bool dominant =
       reg.samples > 0 && reg.mass > 4.0 * reg.mass_se && inertial_rms > std::abs(reg.coulomb);
   std::ostringstream what;

@@ -24,14 +24,6 @@ std::string fmt(double v, int precision = 3) {
   return buf;
 }
 
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const auto k =
-      static_cast<std::size_t>(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size() - 1));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
-
 // Least-squares share of the residual explained by an effect's regressors beyond the nuisance
 // regressors (a Coulomb level change the threshold refit absorbs anyway).
 struct Explained {
@@ -121,8 +113,8 @@ std::vector<double> regime_statistics(const Signals& s, ResidualEvidence& ev) {
   if (ev.sliding_samples) {
     ev.sliding_rms = std::sqrt(ss_s / static_cast<double>(ev.sliding_samples));
     ev.sliding_mean = m_s / static_cast<double>(ev.sliding_samples);
-    ev.sliding_speed_min = quantile(speeds, 0.05);
-    ev.sliding_speed_max = quantile(speeds, 0.95);
+    ev.sliding_speed_min = nearest_rank_quantile(speeds, 0.05);
+    ev.sliding_speed_max = nearest_rank_quantile(speeds, 0.95);
   }
   if (ev.presliding_samples) {
     ev.presliding_rms = std::sqrt(ss_p / static_cast<double>(ev.presliding_samples));

@@ -9,18 +9,11 @@
 #include <Eigen/Dense>
 
 #include "friction/error.hpp"
+#include "friction/metrics.hpp"
 #include "friction/sample_derivatives.hpp"
 
 namespace friction {
 namespace {
-
-// Quantile by partial sort of a copy; p in [0, 1], nearest-rank below.
-double quantile(std::vector<double> v, double p) {
-  if (v.empty()) return 0.0;
-  const auto k = static_cast<std::size_t>(p * static_cast<double>(v.size() - 1));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -146,7 +139,7 @@ ForceSignEstimate estimate_force_sign(std::span<const double> time,
     v[k - h] = (displacement[k + h] - displacement[k - h]) / (time[k + h] - time[k - h]);
   std::vector<double> speed(v.size());
   std::transform(v.begin(), v.end(), speed.begin(), [](double a) { return std::abs(a); });
-  const double threshold = 0.2 * quantile(std::move(speed), 0.98);
+  const double threshold = 0.2 * nearest_rank_quantile(std::move(speed), 0.98);
   e.sliding_velocity = threshold;
   if (!(threshold > 0.0)) return e;
 
@@ -204,7 +197,7 @@ SlidingForceRegression sliding_force_regression(std::span<const double> time,
   SampleDerivatives d = sample_derivatives(time.first(n), displacement.first(n));
   std::vector<double> speed(n);
   for (std::size_t k = 0; k < n; ++k) speed[k] = std::abs(d.velocity[k]);
-  const double threshold = 0.2 * quantile(speed, 0.98);
+  const double threshold = 0.2 * nearest_rank_quantile(speed, 0.98);
   out.acceleration = std::move(d.acceleration);
   if (!(threshold > 0.0)) return out;
   std::vector<std::size_t> rows;

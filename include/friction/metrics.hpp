@@ -103,6 +103,16 @@ inline double estimate_white_noise_sigma(std::span<const double> signal, int ord
   return 1.4826 * mad / std::sqrt(binom);
 }
 
+/// The q-quantile of `v` by nearest rank below (element floor(q (n - 1)) of the sorted values, q
+/// clamped to [0, 1]); 0 for an empty vector.  Takes a copy: a partial sort reorders it.
+inline double nearest_rank_quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const auto k =
+      static_cast<std::size_t>(std::clamp(q, 0.0, 1.0) * static_cast<double>(v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
 /// Sum of squares of a signal (the SSS of RSS/SSS, or an RSS of a residual).
 inline double sum_of_squares(std::span<const double> v) {
   double s = 0;
