@@ -2,12 +2,14 @@
 #include "friction/sample_derivatives.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/Dense>
 #include <Eigen/LU>
 #include <unsupported/Eigen/FFT>
 
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <cstdlib>
 #include <numbers>
 #include <vector>
 
@@ -63,19 +65,18 @@ void local_fit(std::span<const double> time, std::span<const double> x, std::siz
 }  // namespace
 
 void local_polynomial_derivatives(std::span<const double> time, std::span<const double> x,
-                                  std::size_t velocity_half_width,
-                                  std::size_t acceleration_half_width, std::span<double> velocity,
+                                  const DerivativeWindows& windows, std::span<double> velocity,
                                   std::span<double> acceleration) {
   check_record(time, x, 3);
   FRICTION_CHECK(velocity.size() == x.size() && acceleration.size() == x.size(),
                  "sample derivatives: output spans must match the record");
-  FRICTION_CHECK(velocity_half_width >= 1 && acceleration_half_width >= 1,
+  FRICTION_CHECK(windows.velocity_half_width >= 1 && windows.acceleration_half_width >= 1,
                  "sample derivatives: half widths must be >= 1");
+  DerivativeWindows w = windows;
   std::vector<double> intervals(x.size() - 1);
   for (std::size_t k = 1; k < x.size(); ++k) intervals[k - 1] = time[k] - time[k - 1];
-  const double ts = median_of(intervals);
-  local_fit(time, x, velocity_half_width, 1, ts, velocity);
-  local_fit(time, x, acceleration_half_width, 2, ts, acceleration);
+  w.sampling_period = median_of(intervals);
+  apply_local_derivatives<double>(time, x, w, velocity, acceleration);
 }
 
 namespace {
@@ -144,6 +145,44 @@ double top_band_level(const Spectrum& s) {
 constexpr double kSignalOverNoise = 2.0;
 constexpr std::size_t kDecisionBins = 4;
 
+// For a symmetric window of 2m+1 uniform samples and powers of tau = i/m, the local polynomial's
+// derivatives are rows of the inverse normal equations applied to sums of tau^q x_i: the odd
+// powers (tau, or tau and tau^3) give the slope, the even ones (1 and tau^2, or 1, tau^2 and
+// tau^4) the curvature.  odd[d] and even[d] hold those rows for degree 2 (d = 0) and 4 (d = 1).
+struct FilterRows {
+  double odd[2][2] = {{0, 0}, {0, 0}};
+  double even[2][3] = {{0, 0, 0}, {0, 0, 0}};
+};
+
+std::vector<FilterRows> filter_rows(std::size_t m_max) {
+  std::vector<FilterRows> rows(m_max + 1);
+  double sums[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};  // sum over i = 1..m of i^q
+  for (std::size_t m = 1; m <= m_max; ++m) {
+    const double i = static_cast<double>(m);
+    double q = 1;
+    for (double& s : sums) s += q, q *= i;
+    double moment[9];  // sum over i = -m..m of (i/m)^q
+    for (int k = 0; k <= 8; ++k)
+      moment[k] = k % 2 ? 0.0 : (k == 0 ? 1 + 2 * sums[0] : 2 * sums[k] / std::pow(i, k));
+    FilterRows& r = rows[m];
+    r.odd[0][0] = 1 / moment[2];
+    r.even[0][0] = -moment[2] / (moment[0] * moment[4] - moment[2] * moment[2]);
+    r.even[0][1] = moment[0] / (moment[0] * moment[4] - moment[2] * moment[2]);
+    if (m >= 2) {
+      Eigen::Matrix2d go;
+      go << moment[2], moment[4], moment[4], moment[6];
+      const Eigen::Vector2d o = go.inverse().col(0);
+      r.odd[1][0] = o[0], r.odd[1][1] = o[1];
+      Eigen::Matrix3d ge;
+      ge << moment[0], moment[2], moment[4], moment[2], moment[4], moment[6], moment[4], moment[6],
+          moment[8];
+      const Eigen::Vector3d e = ge.inverse().col(1);
+      r.even[1][0] = e[0], r.even[1][1] = e[1], r.even[1][2] = e[2];
+    }
+  }
+  return rows;
+}
+
 // The predicted mean square errors of v and a for every half width, and their minimisers.  For a
 // filter H, the ideal derivative D, and P = S + N the measured spectrum of x (signal S, noise N),
 //     E = |H - D|^2 S + |H|^2 N = |H|^2 P - 2 Re(H D*) S + |D|^2 S.
@@ -158,7 +197,11 @@ void minimise_errors(const Spectrum& p, const std::vector<double>& noise, double
   const std::size_t length = p.length;
   const double lf = static_cast<double>(length);
   const std::size_t m_max = std::max<std::size_t>(1, std::min(length / 4, (n - 1) / 2));
-  std::vector<double> e_v(m_max + 1, 0.0), e_a(m_max + 1, 0.0);
+  // e[degree / 2 - 1][m]: degrees 2 and 4.
+  // e: the mean square errors less sum |D|^2 S; cross and pass: sum Re(H D*) S and sum |H|^2 P.
+  std::vector<double> e_v[2], e_a[2], cross_v[2], cross_a[2], pass_v[2], pass_a[2];
+  for (auto* e : {e_v, e_a, cross_v, cross_a, pass_v, pass_a})
+    for (int d = 0; d < 2; ++d) e[d].assign(m_max + 1, 0.0);
   double ideal_v = 0, ideal_a = 0;  // sum |D|^2 S
   // Local averages over +-kDecisionBins bins decide where the signal is, and the bin keeps its
   // own shape through the local signal fraction (a quantiser's lines sit a few bins apart in the
@@ -181,6 +224,8 @@ void minimise_errors(const Spectrum& p, const std::vector<double>& noise, double
   std::size_t band_end = 0;
   while (band_end < half && p_avg[band_end + 1] > kSignalOverNoise * n_avg[band_end + 1])
     ++band_end;
+  // The filters' rows of the inverse normal equations depend on m only (powers of i/m).
+  const std::vector<FilterRows> rows = filter_rows(m_max);
   for (std::size_t j = 1; j <= length / 2; ++j) {
     const double total = p.p[j];
     const double signal = j <= band_end ? total * (1 - n_avg[j] / p_avg[j]) : 0.0;
@@ -188,34 +233,56 @@ void minimise_errors(const Spectrum& p, const std::vector<double>& noise, double
     const double d_v = wj / ts, d_a = -wj * wj / (ts * ts);
     ideal_v += weight * d_v * d_v * signal;
     ideal_a += weight * d_a * d_a * signal;
-    double sum_isin = 0, sum_i2cos = 0, sum_cos = 0;
+    // Unscaled sums over i = 1..m of i^q cos(w i) (q = 0, 2, 4) and i^q sin(w i) (q = 1, 3).
+    double c0 = 0, c2 = 0, c4 = 0, s1 = 0, s3 = 0;
     for (std::size_t m = 1; m <= m_max; ++m) {
-      const double i = static_cast<double>(m);
-      sum_isin += i * std::sin(wj * i);
-      sum_i2cos += i * i * std::cos(wj * i);
-      sum_cos += std::cos(wj * i);
-      const double s2 = i * (i + 1) * (2 * i + 1) / 3;
-      const double s4 = i * (i + 1) * (2 * i + 1) * (3 * i * i + 3 * i - 1) / 15;
-      const double mu2 = s2 / (2 * i + 1), dd = s4 - s2 * s2 / (2 * i + 1);
-      const double h_v = 2 * sum_isin / (s2 * ts);  // H = i h_v, D = i d_v
-      const double h_a = 2 / (ts * ts * dd) * (2 * sum_i2cos - mu2 * (1 + 2 * sum_cos));
-      e_v[m] += weight * (h_v * h_v * total - 2 * h_v * d_v * signal);
-      e_a[m] += weight * (h_a * h_a * total - 2 * h_a * d_a * signal);
+      const double i = static_cast<double>(m), cs = std::cos(wj * i), sn = std::sin(wj * i);
+      const double i2 = i * i;
+      c0 += cs, c2 += i2 * cs, c4 += i2 * i2 * cs, s1 += i * sn, s3 += i2 * i * sn;
+      // Scaled to powers of i/m, over i = -m..m.
+      const double cos_sums[3] = {1 + 2 * c0, 2 * c2 / (i2), 2 * c4 / (i2 * i2)};
+      const double sin_sums[2] = {2 * s1 / i, 2 * s3 / (i2 * i)};
+      const FilterRows& r = rows[m];
+      for (int d = 0; d < 2; ++d) {
+        if (d == 1 && m < 2) continue;  // a quartic needs five samples
+        double hv = 0, ha = 0;          // H_v = i hv, H_a = ha
+        for (int q = 0; q <= d; ++q) hv += r.odd[d][q] * sin_sums[q];
+        for (int q = 0; q <= d + 1; ++q) ha += r.even[d][q] * cos_sums[q];
+        hv /= ts * i;
+        ha *= 2 / (ts * ts * i2);
+        cross_v[d][m] += weight * hv * d_v * signal;
+        cross_a[d][m] += weight * ha * d_a * signal;
+        pass_v[d][m] += weight * hv * hv * total;
+        pass_a[d][m] += weight * ha * ha * total;
+      }
     }
   }
   double best_v = INFINITY, best_a = INFINITY;
-  for (std::size_t m = 1; m <= m_max; ++m) {
-    if (e_v[m] < best_v) {
-      best_v = e_v[m];
-      w.velocity_half_width = m;
+  for (int d = 0; d < 2; ++d)
+    for (std::size_t m = d == 1 ? 2 : 1; m <= m_max; ++m) {
+      e_v[d][m] = pass_v[d][m] - 2 * cross_v[d][m];
+      e_a[d][m] = pass_a[d][m] - 2 * cross_a[d][m];
+      if (e_v[d][m] < best_v) {
+        best_v = e_v[d][m];
+        w.velocity_half_width = m;
+        w.velocity_degree = 2 + 2 * static_cast<std::size_t>(d);
+      }
+      if (e_a[d][m] < best_a) {
+        best_a = e_a[d][m];
+        w.acceleration_half_width = m;
+        w.acceleration_degree = 2 + 2 * static_cast<std::size_t>(d);
+      }
     }
-    if (e_a[m] < best_a) {
-      best_a = e_a[m];
-      w.acceleration_half_width = m;
-    }
-  }
   w.velocity_rms_error = std::sqrt(std::max(best_v + ideal_v, 0.0));
   w.acceleration_rms_error = std::sqrt(std::max(best_a + ideal_a, 0.0));
+  const std::size_t dv = w.velocity_degree / 2 - 1, da = w.acceleration_degree / 2 - 1;
+  const std::size_t mv = w.velocity_half_width, ma = w.acceleration_half_width;
+  // What the chosen filters lose against the ideal derivative, per sample: sum |H|^2 P less
+  // sum Re(H D*) S.  It sits where the filter departs from D, high in the band, where the spectrum
+  // is reliable; choose_derivative_windows divides it by the estimate's whole mean square (the
+  // spectrum of increments has no constant velocity, so a ramp's would be missing from it).
+  w.velocity_regression_factor = pass_v[dv][mv] - cross_v[dv][mv];
+  w.acceleration_regression_factor = pass_a[da][ma] - cross_a[da][ma];
 }
 
 }  // namespace
@@ -277,6 +344,22 @@ DerivativeWindows choose_derivative_windows(std::span<const double> time,
     minimise_errors(p, noise, ts, n, w);
     w.displacement_noise = std::sqrt(variance + excess);
   }
+  // The regression factors sum(s s_hat) / sum(s_hat^2) = 1 - (what the filter loses) /
+  // sum(s_hat^2): a term fitted by least squares on f s_hat is then the term fitted on s, to first
+  // order (regression calibration: f s_hat is the least-squares prediction of s from s_hat).  The
+  // attenuation of a long window makes f > 1, the noise a short one passes f < 1.
+  const double lost_v = w.velocity_regression_factor, lost_a = w.acceleration_regression_factor;
+  w.velocity_regression_factor = w.acceleration_regression_factor = 1;
+  std::vector<double> v(n), a(n);
+  apply_local_derivatives<double>(time, x, w, v, a);
+  double mean_square_v = 0, mean_square_a = 0;
+  for (std::size_t k = 0; k < n; ++k) mean_square_v += v[k] * v[k], mean_square_a += a[k] * a[k];
+  mean_square_v /= static_cast<double>(n);
+  mean_square_a /= static_cast<double>(n);
+  if (mean_square_v > 0 && std::abs(lost_v) < mean_square_v)
+    w.velocity_regression_factor = 1 - lost_v / mean_square_v;
+  if (mean_square_a > 0 && std::abs(lost_a) < mean_square_a)
+    w.acceleration_regression_factor = 1 - lost_a / mean_square_a;
   return w;
 }
 
@@ -285,8 +368,7 @@ SampleDerivatives sample_derivatives(std::span<const double> time, std::span<con
   s.windows = choose_derivative_windows(time, x);
   s.velocity.resize(x.size());
   s.acceleration.resize(x.size());
-  local_polynomial_derivatives(time, x, s.windows.velocity_half_width,
-                               s.windows.acceleration_half_width, s.velocity, s.acceleration);
+  local_polynomial_derivatives(time, x, s.windows, s.velocity, s.acceleration);
   return s;
 }
 

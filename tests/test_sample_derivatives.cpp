@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <vector>
 
 #include "friction/sample_derivatives.hpp"
 #include "study_design.hpp"
@@ -26,26 +27,32 @@ struct Errors {
   double velocity, acceleration;
 };
 
-Errors errors_with(const truth::Trace& t, std::size_t mv, std::size_t ma) {
+Errors errors_with(const truth::Trace& t, const DerivativeWindows& w) {
   std::vector<double> v(t.time.size()), a(t.time.size());
-  local_polynomial_derivatives(t.time, t.position, mv, ma, v, a);
+  local_polynomial_derivatives(t.time, t.position, w, v, a);
   return {rms_error(v, t.velocity), rms_error(a, t.acceleration)};
 }
 
-// The rule against the best fixed window of the same estimator (every half width up to 120).
+// The rule against the best fixed window of the same estimator (every half width up to 120, both
+// degrees).
 void expect_near_best(const truth::Trace& t, const std::string& what) {
   const DerivativeWindows w = choose_derivative_windows(t.time, t.position);
-  const Errors rule = errors_with(t, w.velocity_half_width, w.acceleration_half_width);
+  const Errors rule = errors_with(t, w);
   Errors best{INFINITY, INFINITY};
-  for (std::size_t m = 1; m <= 120 && 2 * m + 1 < t.time.size(); ++m) {
-    const Errors e = errors_with(t, m, m);
-    best.velocity = std::min(best.velocity, e.velocity);
-    best.acceleration = std::min(best.acceleration, e.acceleration);
-  }
+  for (std::size_t degree : {2u, 4u})
+    for (std::size_t m = degree / 2; m <= 120 && 2 * m + 1 < t.time.size(); ++m) {
+      DerivativeWindows fixed;
+      fixed.velocity_half_width = fixed.acceleration_half_width = m;
+      fixed.velocity_degree = fixed.acceleration_degree = degree;
+      const Errors e = errors_with(t, fixed);
+      best.velocity = std::min(best.velocity, e.velocity);
+      best.acceleration = std::min(best.acceleration, e.acceleration);
+    }
   EXPECT_LE(rule.velocity, 1.5 * best.velocity)
-      << what << ": velocity window " << w.velocity_half_width;
+      << what << ": velocity window " << w.velocity_half_width << ", degree " << w.velocity_degree;
   EXPECT_LE(rule.acceleration, 1.5 * best.acceleration)
-      << what << ": acceleration window " << w.acceleration_half_width;
+      << what << ": acceleration window " << w.acceleration_half_width << ", degree "
+      << w.acceleration_degree;
   // The backward difference is half a sample late: never better than the rule on these records.
   std::vector<double> backward(t.time.size(), 0.0);
   for (std::size_t k = 1; k < t.time.size(); ++k)
@@ -82,6 +89,53 @@ TEST(SampleDerivatives, WithinOneAndAHalfOfTheBestFixedWindowOnAnalogRecords) {
     std::snprintf(what, sizeof what, ", sensor noise %.2g m", m.position_noise);
     expect_near_best(t, r.summary() + what);
   }
+}
+
+// A term fitted by least squares on an estimated signal: sum(F s_hat) / sum(s_hat^2) for a force
+// F = c s of the exact signal s.  Its relative error is the differentiator's attenuation less its
+// noise's dilution, both first order in the filter's error, where the RMS error of the signal is
+// second order in the attenuation: a window that is right for the signal can bias the term.
+double coefficient_bias(const std::vector<double>& exact, const std::vector<double>& estimate) {
+  double fs = 0, ss = 0;
+  for (std::size_t k = 0; k < exact.size(); ++k) {
+    fs += exact[k] * estimate[k];
+    ss += estimate[k] * estimate[k];
+  }
+  return fs / ss - 1;
+}
+
+// Without the regression factors, on the 30 records of seeds 5100-5129 the rule was developed
+// on, the acceleration's terms came out 0.5-1.4 % high on stroke records (the local quartic's
+// attenuation of the stroke ends) and 0.02-0.5 % on the others; with them, within -0.21 % and
+// +0.18 % (velocity: 0.03 %).  On records not looked at then (seeds 5200-5229) the factors are
+// as good on most, while a few stroke records whose jerks hide under an encoder's noise keep up
+// to 1.2 % (the spectrum cannot show signal below the noise), and a 55-sample velocity window
+// on a coarse encoder 0.26 %: hence a bound on the median and a looser one on every trace.
+TEST(SampleDerivatives, TermsFittedOnTheRulesSignalsAreNearlyUnbiased) {
+  std::vector<double> bias_v, bias_a;
+  for (std::uint64_t seed = 5200; seed < 5230; ++seed) {
+    const truth::StudyRecord r = study_record(seed);
+    for (const truth::Trace* t : {&r.trace_estimation, &r.trace_validation}) {
+      const SampleDerivatives d = sample_derivatives(t->time, t->position);
+      bias_v.push_back(std::abs(coefficient_bias(t->velocity, d.velocity)));
+      bias_a.push_back(std::abs(coefficient_bias(t->acceleration, d.acceleration)));
+      EXPECT_LE(bias_v.back(), 3e-3) << r.summary();
+      EXPECT_LE(bias_a.back(), 1.5e-2)
+          << r.summary() << ": acceleration window " << d.windows.acceleration_half_width
+          << ", degree " << d.windows.acceleration_degree;
+    }
+  }
+  auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  EXPECT_LE(median(bias_v), 2e-4);
+  EXPECT_LE(median(bias_a), 1e-3);
+  std::printf(
+      "relative bias of a fitted term, median and largest: velocity %.2g, %.2g; "
+      "acceleration %.2g, %.2g\n",
+      median(bias_v), *std::max_element(bias_v.begin(), bias_v.end()), median(bias_a),
+      *std::max_element(bias_a.begin(), bias_a.end()));
 }
 
 // A drive force with a large m a, a 10 nm encoder at 1 kHz: the least-squares mass on the rule's

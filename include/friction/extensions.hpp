@@ -663,8 +663,18 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
   }
   v.assign(n, T(0));
   a.assign(n, T(0));
-  apply_local_derivatives<T>(time, std::span<const T>(xs), *windows, std::span<T>(v),
-                             std::span<T>(a));
+  // A displacement without derivative parts (every fit but a delay's) is filtered as doubles:
+  // the same numbers at a sixteenth of a Jet<16>'s cost, which was a fifth of a diagnosis.
+  if (std::none_of(xs.begin(), xs.end(), [](const T& s) { return has_derivative(s); })) {
+    thread_local std::vector<double> xd, vd, ad;
+    xd.resize(n), vd.resize(n), ad.resize(n);
+    for (std::size_t k = 0; k < n; ++k) xd[k] = value_of(xs[k]);
+    apply_local_derivatives<double>(time, xd, *windows, vd, ad);
+    for (std::size_t k = 0; k < n; ++k) v[k] = T(vd[k]), a[k] = T(ad[k]);
+  } else {
+    apply_local_derivatives<T>(time, std::span<const T>(xs), *windows, std::span<T>(v),
+                               std::span<T>(a));
+  }
   for (std::size_t k = 0; k < n; ++k) {
     ExtendedMotion<T> c;
     c.x = xs[k];

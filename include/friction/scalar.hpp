@@ -23,6 +23,19 @@ constexpr double value_of(const T& x) {
   }
 }
 
+/// Whether a scalar carries a nonzero derivative part (never, for a double).
+template <typename T>
+bool has_derivative(const T& x) {
+  if constexpr (std::is_arithmetic_v<T>) {
+    return false;
+  } else {
+    if (has_derivative(x.a)) return true;
+    for (int i = 0; i < x.v.size(); ++i)
+      if (x.v[i] != 0) return true;
+    return false;
+  }
+}
+
 /// sgn(x) in {-1, 0, 1}, as a plain number: its derivative is zero almost everywhere.
 template <typename T>
 constexpr double sign_of(const T& x) {

@@ -334,6 +334,10 @@ Outcome run_record(const RecordSpec& spec, const fs::path& dir) {
     write_csv(r, true, (rd / "estimation.csv").string());
     write_csv(r, false, (rd / "validation.csv").string());
     write_truth(r, rd / "truth.json");
+    {  // the read options, to rerun a record by hand: friction-identify diagnose ... $(cat ...)
+      std::ofstream o(rd / "read-options.txt");
+      o << r.read_options() << "\n";
+    }
     std::vector<std::string> args = {"diagnose",
                                      "--data",
                                      (rd / "estimation.csv").string(),
@@ -367,9 +371,8 @@ std::vector<RecordSpec> only_selected(std::vector<RecordSpec> plan) {
   const char* only = std::getenv("FRICTION_STUDY_ONLY");
   if (!only || !*only) return plan;
   const std::string list = std::string(",") + only + ",";
-  std::erase_if(plan, [&](const RecordSpec& s) {
-    return list.find("," + s.id + ",") == std::string::npos;
-  });
+  std::erase_if(
+      plan, [&](const RecordSpec& s) { return list.find("," + s.id + ",") == std::string::npos; });
   return plan;
 }
 bool whole_plan() {
