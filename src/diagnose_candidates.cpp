@@ -260,9 +260,13 @@ Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double
   v.validation_after = val1;
   v.validation_required =
       val0 - o.min_excess_share * std::max(val0 - c.validation_floor_percent, 0.0);
-  v.validation = std::isnan(val1)               ? Verdict::Validation::not_evaluated
-                 : val1 < v.validation_required ? Verdict::Validation::falls
-                                                : Verdict::Validation::does_not_fall;
+  v.validation = std::isnan(val1)                     ? Verdict::Validation::not_evaluated
+                 : val0 <= c.validation_floor_percent ? Verdict::Validation::at_floor
+                 : val1 < v.validation_required       ? Verdict::Validation::falls
+                                                      : Verdict::Validation::does_not_fall;
+  // At the floor the required fall is the floor itself (reported as such).
+  if (v.validation == Verdict::Validation::at_floor)
+    v.validation_required = c.validation_floor_percent;
   return v;
 }
 

@@ -227,6 +227,10 @@ std::string Verdict::to_text() const {
       s << "validation error does not fall enough (" << fmt(validation_before) << " -> "
         << fmt(validation_after) << " %, needs < " << fmt(validation_required) << " %); ";
       break;
+    case Validation::at_floor:
+      s << "the validation error is already at the noise floor (" << fmt(validation_before)
+        << " %, floor " << fmt(validation_required) << " %): nothing above it to explain; ";
+      break;
     case Validation::falls:
       break;
   }

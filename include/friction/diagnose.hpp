@@ -69,7 +69,10 @@
 //          records of the independent simulator without any effect (its elements are not
 //          Maxwell Slip operators, so the baseline stops 2-4 times above the noise floor) a
 //          Stribeck curve bought 10-30 % of the estimation misfit and 4-8 % of the validation's
-//          (3 of 22 records named an effect they do not hold).
+//          (3 of 22 records named an effect they do not hold).  A model that already validates
+//          at or below that floor has nothing above it to explain, and no candidate earns its
+//          place: with the plain share (zero there) an inertia entered beside a delay and a
+//          position term that were at the floor, for a 1 % fall of an error already below it.
 //    Greedy: each round fits every remaining candidate on top of the accepted ones and accepts,
 //    among those that earn their place, the one with the largest gain (the lowest validation
 //    error); rounds repeat until none does.  Ranking by estimation Delta BIC instead was tried: on
@@ -221,6 +224,7 @@ struct Verdict {
     not_evaluated,        ///< rules (a) or (b) failed first
     falls,                ///< lower than the current model's
     does_not_fall,        ///< not lower
+    at_floor,             ///< the current model already validates at or below the noise floor
     computed_for_report,  ///< computed afterwards, for a warning only (never for the acceptance)
   };
   /// Nested candidates (header comment): checks after the rules.
@@ -248,7 +252,8 @@ struct Verdict {
   Validation validation = Validation::not_evaluated;
   double validation_before = 0;    ///< RSS/SSS % of the current model (rule c)
   double validation_after = 0;     ///< RSS/SSS % of the candidate (rule c)
-  double validation_required = 0;  ///< rule (c): what validation_after must be below [%]
+  double validation_required = 0;  ///< rule (c): what validation_after must be below [%] (the
+                                   ///< validation record's noise floor when at_floor)
   Nested nested = Nested::none;
 
   bool bic_falls() const { return delta_bic < 0; }
