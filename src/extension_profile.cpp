@@ -12,7 +12,6 @@
 // in the fit that follows.
 #include <algorithm>
 #include <cmath>
-#include <complex>
 #include <limits>
 #include <numeric>
 
@@ -70,59 +69,6 @@ void fill_columns(const Record& r, const std::vector<double>& thresholds,
   }
 }
 
-// Wavelengths at which the residual of the model without the position term is best explained by
-// a level ripple, F_hat(x) (a sin(2 pi x / l) + b cos(2 pi x / l)): the peaks of that periodogram
-// over the spatial frequency 1/l.  The log grid of profile_axes alone is too coarse: a ripple of
-// wavelength l over a travel X has a basin of relative width about l / X (one cycle more or less
-// across the travel), so a wavelength of X/20 needs steps of a few percent, where 16 log points
-// over three decades step by 36 % (a study record ended 4.5 % off in a neighbouring minimum, at
-// 4.2 times the noise floor).  Here the step in 1/l is 1/(8 X), an eighth of a cycle across the
-// travel, up to 4096 frequencies (beyond that the step widens).  The phasors exp(i 2 pi x_k / l)
-// advance by one complex product per sample and frequency.
-std::vector<double> ripple_wavelengths(const std::vector<double>& x,
-                                       const Eigen::VectorXd& residual,
-                                       const Eigen::VectorXd& level, double shortest,
-                                       double longest, std::size_t peaks) {
-  const std::size_t n = x.size();
-  if (!(shortest > 0) || !(longest > shortest) || n < 8) return {};
-  const double k_lo = 1 / longest, k_hi = 1 / shortest;
-  const std::size_t count =
-      std::min<std::size_t>(4096, static_cast<std::size_t>(std::ceil((k_hi - k_lo) * 8 * longest)));
-  if (count < 2) return {};
-  const double dk = (k_hi - k_lo) / static_cast<double>(count - 1);
-  const double x0 = x.empty() ? 0.0 : *std::min_element(x.begin(), x.end());
-  std::vector<std::complex<double>> z(n), step(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    z[k] = std::polar(1.0, 2 * M_PI * k_lo * (x[k] - x0));
-    step[k] = std::polar(1.0, 2 * M_PI * dk * (x[k] - x0));
-  }
-  std::vector<double> explained(count, 0.0);
-  for (std::size_t j = 0; j < count; ++j) {
-    // Normal equations of [u cos, u sin] (u the level) against the residual.
-    double cc = 0, ss = 0, cs = 0, rc = 0, rs = 0;
-    for (std::size_t k = 0; k < n; ++k) {
-      const double u = level[static_cast<Eigen::Index>(k)], c = u * z[k].real(),
-                   s = u * z[k].imag();
-      const double e = residual[static_cast<Eigen::Index>(k)];
-      cc += c * c, ss += s * s, cs += c * s, rc += e * c, rs += e * s;
-      z[k] *= step[k];
-    }
-    const double det = cc * ss - cs * cs;
-    if (det > 0) explained[j] = (ss * rc * rc - 2 * cs * rc * rs + cc * rs * rs) / det;
-  }
-  std::vector<std::size_t> maxima;
-  for (std::size_t j = 0; j < count; ++j)
-    if ((j == 0 || explained[j] >= explained[j - 1]) &&
-        (j + 1 == count || explained[j] > explained[j + 1]))
-      maxima.push_back(j);
-  std::sort(maxima.begin(), maxima.end(),
-            [&](std::size_t a, std::size_t b) { return explained[a] > explained[b]; });
-  std::vector<double> out;
-  for (std::size_t i = 0; i < maxima.size() && i < peaks; ++i)
-    out.push_back(1 / (k_lo + dk * static_cast<double>(maxima[i])));
-  return out;
-}
-
 }  // namespace
 
 ProfileScales profile_scales(const Record& r, const ExtendedSlipRun& run, double reference_force) {
@@ -169,37 +115,13 @@ ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>
   }
   ProfileScales s = scales;
   s.reference_force = point.reference_force;
-  if (profiled == Effect::position_dependence && point.position_dependence &&
-      point.position_reference == 0.0 && !r.displacement.empty()) {
-    // The phase refers to the middle of the travel (extensions.hpp: position-dependence); the
-    // piece's start is the same function of x.
-    const auto [lo, hi] = std::minmax_element(r.displacement.begin(), r.displacement.end());
-    point.position_reference = 0.5 * (*lo + *hi);
-    auto& pd = *point.position_dependence;
-    pd.phase =
-        std::remainder(pd.phase + 2 * M_PI * point.position_reference / pd.wavelength, 2 * M_PI);
-  }
-  std::vector<ProfileAxis> axes = profile_axes(profiled, s);
+  const std::vector<ProfileAxis> axes = profile_axes(profiled, s);
   const Eigen::Map<const Eigen::VectorXd> f(r.force.data(), static_cast<Eigen::Index>(r.size()));
 
   ProfiledStart best;
   best.rss = std::numeric_limits<double>::infinity();
   Columns c;
   detail::BoxLeastSquaresStorage storage;
-  if (profiled == Effect::position_dependence && !axes.empty()) {
-    // The wavelength axis gains the periodogram's three strongest peaks (ripple_wavelengths).
-    ExtensionParameters<double> without = point;
-    without.position_dependence.reset();
-    fill_columns(r, base.threshold, rho, without, windows, c);
-    const Eigen::VectorXd z = detail::box_least_squares(c.a, f, c.lo, c.hi, nullptr, &storage);
-    const Eigen::VectorXd fitted = c.a * z;
-    for (ProfileAxis& a : axes)
-      if (a.parameter == "wavelength" && !a.values.empty()) {
-        const auto [lo, hi] = std::minmax_element(a.values.begin(), a.values.end());
-        for (double l : ripple_wavelengths(r.displacement, f - fitted, fitted, *lo, *hi, 3))
-          a.values.push_back(l);
-      }
-  }
   std::vector<std::size_t> at(axes.size(), 0);
   for (;;) {
     for (std::size_t a = 0; a < axes.size(); ++a)

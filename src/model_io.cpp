@@ -87,11 +87,6 @@ ExtensionParameters<double> extensions_from_json(const Json& j, const std::strin
       ext.reference_force = params.get<double>();
       continue;
     }
-    if (name == "position_reference") {
-      if (!params.is_number()) bad(source, "extensions: \"position_reference\" must be a number");
-      ext.position_reference = params.get<double>();
-      continue;
-    }
     const auto effect = effect_from_name(name);
     if (!effect)
       bad(source, "extensions: unknown effect \"" + name + "\" (known: " + effect_names() + ")");
@@ -114,8 +109,6 @@ Json extensions_to_json(const ExtensionParameters<double>& ext) {
     j[std::string(effect_name(e))][std::string(name)] = v;
   });
   if (ext.reference_force != 0.0) j["reference_force"] = ext.reference_force;
-  if (ext.position_dependence && ext.position_reference != 0.0)
-    j["position_reference"] = ext.position_reference;
   return j;
 }
 

@@ -35,12 +35,10 @@ TEST(ModelIo, EveryTypeWithExtensionsRoundTripsThroughJson) {
     friction::parse_effect("position-dependence=0.1,wavelength=1e-4", ext);
     friction::parse_effect("normal-load=0.15", ext);
     friction::parse_effect("delay=0.002", ext);
-    ext.position_reference = 0.37e-3;
     model = model.with_extensions(ext);
     const Json saved = model.to_json();
     EXPECT_EQ(saved["type"], type);
     EXPECT_EQ(saved["extensions"]["position-dependence"]["wavelength"], 1e-4);
-    EXPECT_EQ(saved["extensions"]["position_reference"], 0.37e-3);
     // Through text, as a file would carry it.
     AnyModel loaded = AnyModel::from_json(Json::parse(saved.dump()), "mem");
     EXPECT_EQ(loaded.to_json(), saved);
@@ -50,24 +48,6 @@ TEST(ModelIo, EveryTypeWithExtensionsRoundTripsThroughJson) {
     ASSERT_EQ(a.size(), b.size());
     for (std::size_t k = 0; k < a.size(); ++k) ASSERT_EQ(a[k], b[k]);
   }
-}
-
-// The phase refers to position_reference: a reference x_r with phase phi + 2 pi x_r / lambda is
-// the same model as x_r = 0 with phase phi (and the reference is not a parameter).
-TEST(ModelIo, ThePositionReferenceOnlyMovesWhereThePhaseIsCounted) {
-  const auto record = short_record();
-  AnyModel model = friction::reference_model("maxwell-slip", 1000.0);
-  auto ext = model.extensions();
-  friction::parse_effect("position-dependence=0.1,wavelength=1e-4,phase=0.4", ext);
-  auto absolute = model.with_extensions(ext);
-  ext.position_reference = 0.123;
-  ext.position_dependence->phase = 0.4 + 2 * M_PI * 0.123 / 1e-4;
-  auto referenced = model.with_extensions(ext);
-  EXPECT_EQ(referenced.parameter_count(), absolute.parameter_count());
-  const auto a = absolute.simulate(record);
-  const auto b = referenced.simulate(record);
-  ASSERT_EQ(a.size(), b.size());
-  for (std::size_t k = 0; k < a.size(); ++k) EXPECT_NEAR(a[k], b[k], 1e-9 * std::abs(a[k]) + 1e-12);
 }
 
 TEST(ModelIo, AcceptsADocumentWithTheModelInside) {

@@ -38,15 +38,8 @@
 //                        `asymmetry` a = (F+ - F-)/(F+ + F-) in (-1, 1)
 //   offset               + c                                             `offset` [N]
 //   inertia              + m a                                           `mass` [kg]
-//   position-dependence  L *= 1 + (A/F0) sin(2 pi (x - x_r) / lambda + phi)  `amplitude` A [N],
-//                        `wavelength` lambda [m], `phase` phi [rad] at x_r = `position_reference`
-//                        [m] (0 unless given); x is the absolute position.  A fit sets x_r to the
-//                        middle of its record's travel: with x_r = 0 and a record far from x = 0,
-//                        lambda and phi are nearly collinear (a change of lambda shifts the phase
-//                        by 2 pi x dlambda / lambda^2 everywhere) and the fit stalled in that
-//                        valley (a study record at 1.6e4 wavelengths from zero: wavelength 2.5 %
-//                        off, 2.5 times the noise floor, phase s.e. 53 rad; referenced to its
-//                        travel, 0.2 % and 1.6 times)
+//   position-dependence  L *= 1 + (A/F0) sin(2 pi x / lambda + phi)      `amplitude` A [N],
+//                        `wavelength` lambda [m], `phase` phi [rad]; x is the absolute position
 //   drift                L *= 1 + r t, t the time since the record's start  `relative_rate` [1/s]
 //   delay                the force lags the displacement by D: the base and every piece see the
 //                        motion at t - D (the normal force and time t are not shifted)  `delay` [s]
@@ -219,8 +212,6 @@ struct ExtensionParameters {
   /// F0 [N], the base's sliding level that `static`, `amplitude` and `friction_coefficient` refer
   /// to; 0 takes it from the base's parameters (see Extended).
   T reference_force{0};
-  /// x_r [m], the position the position-dependence phase refers to (a constant, never fitted).
-  double position_reference = 0;
 
   bool has(Effect e) const noexcept {
     bool on = false;
@@ -280,7 +271,6 @@ struct ExtensionParameters {
     std::size_t k = 0;
     for_each_parameter([&](Effect, std::string_view, const T& v) { *targets[k++] = convert(v); });
     out.reference_force = convert(reference_force);
-    out.position_reference = position_reference;
     return out;
   }
 
@@ -294,8 +284,6 @@ struct ExtensionParameters {
     const double f0 = value_of(reference_force);
     FRICTION_CHECK(std::isfinite(f0) && f0 >= 0.0, "extensions: reference_force = ", f0,
                    " N must be finite and >= 0 (0: the base's sliding force)");
-    FRICTION_CHECK(std::isfinite(position_reference),
-                   "extensions: position_reference = ", position_reference, " m must be finite");
     if (viscous)
       FRICTION_CHECK(value_of(viscous->viscous) >= 0.0,
                      "extension viscous: viscous = ", value_of(viscous->viscous),
@@ -517,9 +505,7 @@ class Extended {
     }
     if (p_.position_dependence) {
       const auto& pd = *p_.position_dependence;
-      level *=
-          T(1) + pd.amplitude / f0_ *
-                     sin(T(2.0 * M_PI) * (c.x - p_.position_reference) / pd.wavelength + pd.phase);
+      level *= T(1) + pd.amplitude / f0_ * sin(T(2.0 * M_PI) * c.x / pd.wavelength + pd.phase);
     }
     if (p_.drift) level *= T(1) + p_.drift->relative_rate * T(c.time);
     if (p_.normal_load && c.has_normal)
