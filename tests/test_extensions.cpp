@@ -264,20 +264,25 @@ TEST(Extensions, DelayShiftsTheForceInTime) {
   for (std::size_t k = 0; k < 5; ++k) EXPECT_EQ(f[k], 0.0);
   for (std::size_t k = 5; k < x.size(); ++k) ASSERT_NEAR(f[k], f0[k - 5], 1e-14) << k;
 
-  // A fractional delay is the base on the linearly interpolated displacement; the per-sample
-  // (causal, ring-buffer) path gives the same as the record path.
+  // A fractional delay on a record is the base on the displacement interpolated by cubics (midway
+  // between samples: (-x_{j-1} + 9 x_j + 9 x_{j+1} - x_{j+2}) / 16; linearly in the first
+  // interval); the per-sample (causal, ring-buffer) path interpolates linearly.
   p.delay->delay = 2.5e-3;
   auto fractional = extended(p);
   const auto fr = run(fractional, time, x);
-  std::vector<double> shifted(x.size());
-  for (std::size_t k = 0; k < x.size(); ++k)
-    shifted[k] = k < 3 ? x[0] : 0.5 * (x[k - 2] + x[k - 3]);
-  const auto expected = base_force(time, shifted);
-  for (std::size_t k = 0; k < x.size(); ++k) ASSERT_NEAR(fr[k], expected[k], 1e-14) << k;
+  std::vector<double> cubic(x.size()), linear(x.size());
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    linear[k] = k < 3 ? x[0] : 0.5 * (x[k - 2] + x[k - 3]);
+    cubic[k] = k < 4 ? linear[k] : (-x[k - 4] + 9 * x[k - 3] + 9 * x[k - 2] - x[k - 1]) / 16;
+  }
+  const auto expected = base_force(time, cubic);
+  for (std::size_t k = 0; k < x.size(); ++k) ASSERT_NEAR(fr[k], expected[k], 1e-12) << k;
   fractional.reset();
   const auto per_sample =
       friction::simulate(fractional, std::span<const double>(time), std::span<const double>(x));
-  for (std::size_t k = 0; k < x.size(); ++k) ASSERT_NEAR(per_sample[k], expected[k], 1e-14) << k;
+  const auto expected_causal = base_force(time, linear);
+  for (std::size_t k = 0; k < x.size(); ++k)
+    ASSERT_NEAR(per_sample[k], expected_causal[k], 1e-14) << k;
 }
 
 TEST(Extensions, NoPiecesIsTheBaseModel) {
