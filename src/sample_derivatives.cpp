@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
-#include <cstdlib>
 #include <numbers>
 #include <vector>
 
@@ -36,10 +35,10 @@ double median_of(std::vector<double> v) {
   return v[h];
 }
 
-// One pass of local quadratic fits with half width m; writes the fitted value (order 0), the first
-// (order 1) or the second (order 2) derivative at every sample.
-void local_fit(std::span<const double> time, std::span<const double> x, std::size_t m, int order,
-               double ts, std::span<double> out) {
+// One pass of local quadratic fits with half width m; writes the fitted value at every sample (the
+// smooth estimate of the encoder model below; the derivatives come from apply_local_derivatives).
+void local_smooth(std::span<const double> time, std::span<const double> x, std::size_t m, double ts,
+                  std::span<double> out) {
   const std::size_t n = x.size(), width = std::min(2 * m + 1, n);
   for (std::size_t k = 0; k < n; ++k) {
     // The window of `width` samples centred on k, slid inside the record near its ends.
@@ -58,7 +57,7 @@ void local_fit(std::span<const double> time, std::span<const double> x, std::siz
     Eigen::Matrix3d a;
     a << s[0], s[1], s[2], s[1], s[2], s[3], s[2], s[3], s[4];
     const Eigen::Vector3d c = a.partialPivLu().solve(Eigen::Vector3d(r[0], r[1], r[2]));
-    out[k] = order == 0 ? x[k] + c[0] : order == 1 ? c[1] / ts : 2 * c[2] / (ts * ts);
+    out[k] = x[k] + c[0];
   }
 }
 
@@ -192,15 +191,21 @@ std::vector<FilterRows> filter_rows(std::size_t m_max) {
 // times too short on quantised records).  The last term does not depend on m.  S is the bin's
 // power times the local signal fraction where the bin holds signal (kSignalOverNoise), 0
 // elsewhere.
-void minimise_errors(const Spectrum& p, const std::vector<double>& noise, double ts, std::size_t n,
-                     DerivativeWindows& w) {
+// Returns what the chosen filters lose against the ideal derivative, per sample: sum |H|^2 P less
+// sum Re(H D*) S.  It sits where the filter departs from D, high in the band, where the spectrum
+// is reliable; choose_derivative_windows turns it into the regression factors.
+struct FilterLoss {
+  double velocity = 0, acceleration = 0;
+};
+
+FilterLoss minimise_errors(const Spectrum& p, const std::vector<double>& noise, double ts,
+                           std::size_t n, DerivativeWindows& w) {
   const std::size_t length = p.length;
   const double lf = static_cast<double>(length);
   const std::size_t m_max = std::max<std::size_t>(1, std::min(length / 4, (n - 1) / 2));
-  // e[degree / 2 - 1][m]: degrees 2 and 4.
-  // e: the mean square errors less sum |D|^2 S; cross and pass: sum Re(H D*) S and sum |H|^2 P.
-  std::vector<double> e_v[2], e_a[2], cross_v[2], cross_a[2], pass_v[2], pass_a[2];
-  for (auto* e : {e_v, e_a, cross_v, cross_a, pass_v, pass_a})
+  // [degree / 2 - 1][m] for degrees 2 and 4: sum Re(H D*) S and sum |H|^2 P.
+  std::vector<double> cross_v[2], cross_a[2], pass_v[2], pass_a[2];
+  for (auto* e : {cross_v, cross_a, pass_v, pass_a})
     for (int d = 0; d < 2; ++d) e[d].assign(m_max + 1, 0.0);
   double ideal_v = 0, ideal_a = 0;  // sum |D|^2 S
   // Local averages over +-kDecisionBins bins decide where the signal is, and the bin keeps its
@@ -260,15 +265,16 @@ void minimise_errors(const Spectrum& p, const std::vector<double>& noise, double
   double best_v = INFINITY, best_a = INFINITY;
   for (int d = 0; d < 2; ++d)
     for (std::size_t m = d == 1 ? 2 : 1; m <= m_max; ++m) {
-      e_v[d][m] = pass_v[d][m] - 2 * cross_v[d][m];
-      e_a[d][m] = pass_a[d][m] - 2 * cross_a[d][m];
-      if (e_v[d][m] < best_v) {
-        best_v = e_v[d][m];
+      // The mean square errors less sum |D|^2 S.
+      const double e_v = pass_v[d][m] - 2 * cross_v[d][m];
+      const double e_a = pass_a[d][m] - 2 * cross_a[d][m];
+      if (e_v < best_v) {
+        best_v = e_v;
         w.velocity_half_width = m;
         w.velocity_degree = 2 + 2 * static_cast<std::size_t>(d);
       }
-      if (e_a[d][m] < best_a) {
-        best_a = e_a[d][m];
+      if (e_a < best_a) {
+        best_a = e_a;
         w.acceleration_half_width = m;
         w.acceleration_degree = 2 + 2 * static_cast<std::size_t>(d);
       }
@@ -277,12 +283,7 @@ void minimise_errors(const Spectrum& p, const std::vector<double>& noise, double
   w.acceleration_rms_error = std::sqrt(std::max(best_a + ideal_a, 0.0));
   const std::size_t dv = w.velocity_degree / 2 - 1, da = w.acceleration_degree / 2 - 1;
   const std::size_t mv = w.velocity_half_width, ma = w.acceleration_half_width;
-  // What the chosen filters lose against the ideal derivative, per sample: sum |H|^2 P less
-  // sum Re(H D*) S.  It sits where the filter departs from D, high in the band, where the spectrum
-  // is reliable; choose_derivative_windows divides it by the estimate's whole mean square (the
-  // spectrum of increments has no constant velocity, so a ramp's would be missing from it).
-  w.velocity_regression_factor = pass_v[dv][mv] - cross_v[dv][mv];
-  w.acceleration_regression_factor = pass_a[da][ma] - cross_a[da][ma];
+  return {pass_v[dv][mv] - cross_v[dv][mv], pass_a[da][ma] - cross_a[da][ma]};
 }
 
 }  // namespace
@@ -306,7 +307,7 @@ DerivativeWindows choose_derivative_windows(std::span<const double> time,
   // First pass: white noise at the top band's level.
   const double white = top_band_level(p);
   std::vector<double> noise(p.p.size(), white);
-  minimise_errors(p, noise, ts, n, w);
+  FilterLoss lost = minimise_errors(p, noise, ts, n, w);
   w.displacement_noise = std::sqrt(white);
 
   // An encoder: its quantisation error is white only where the motion crosses many steps per
@@ -330,7 +331,7 @@ DerivativeWindows choose_derivative_windows(std::span<const double> time,
     while (residual(static_cast<double>(quiet)) > 0.01) ++quiet;
     m = std::min(std::max(m, quiet), (n - 1) / 2);
     std::vector<double> smooth(n);
-    local_fit(time, x, m, 0, ts, smooth);
+    local_smooth(time, x, m, ts, smooth);
     const double grid = x[0] - *q * std::round(x[0] / *q);
     std::vector<double> error(n);
     double variance = 0;
@@ -341,15 +342,16 @@ DerivativeWindows choose_derivative_windows(std::span<const double> time,
     const Spectrum e = displacement_spectrum(error, length);
     const double excess = std::max(white - top_band_level(e), 0.0);
     for (std::size_t j = 0; j < noise.size(); ++j) noise[j] = e.p[j] + excess;
-    minimise_errors(p, noise, ts, n, w);
+    lost = minimise_errors(p, noise, ts, n, w);
     w.displacement_noise = std::sqrt(variance + excess);
   }
   // The regression factors sum(s s_hat) / sum(s_hat^2) = 1 - (what the filter loses) /
   // sum(s_hat^2): a term fitted by least squares on f s_hat is then the term fitted on s, to first
   // order (regression calibration: f s_hat is the least-squares prediction of s from s_hat).  The
-  // attenuation of a long window makes f > 1, the noise a short one passes f < 1.
-  const double lost_v = w.velocity_regression_factor, lost_a = w.acceleration_regression_factor;
-  w.velocity_regression_factor = w.acceleration_regression_factor = 1;
+  // attenuation of a long window makes f > 1, the noise a short one passes f < 1.  The loss is
+  // divided by the estimate's whole mean square: the spectrum of increments has no constant
+  // velocity, so a ramp's would be missing from it.
+  const double lost_v = lost.velocity, lost_a = lost.acceleration;
   std::vector<double> v(n), a(n);
   apply_local_derivatives<double>(time, x, w, v, a);
   double mean_square_v = 0, mean_square_a = 0;
