@@ -172,7 +172,6 @@ IdentifiedModel identify_base(const std::string& type, const Record& r, const Me
     if (o.max_operators > 0) n.max_operators = o.max_operators;
     n.operators = o.operators;
     n.global_stage = o.global_stage;
-    n.seed = o.seed;
     NlrResult res = maxwell_slip_base(r, n, o);
     Json init = values_json(res.report.initial_deflections, "m");
     return {AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(res.parameters), none)),
@@ -185,7 +184,6 @@ IdentifiedModel identify_base(const std::string& type, const Record& r, const Me
     d.spring_order = o.spring_order;
     d.input_order = o.input_order;
     d.nlr.global_stage = o.global_stage;
-    d.nlr.seed = o.seed;
     DnlrxResult res = identify_dnlrx(r.time, r.displacement, r.force, d);
     Json init = values_json(res.report.initial_deflections, "m");
     return {AnyModel(Extended<Dnlrx<double>>(Dnlrx<double>(res.parameters), none)),

@@ -1,4 +1,5 @@
-// The one place the library seeds NLopt's random numbers (the CRS2 global stages of NLR and LG).
+// The one place the library seeds NLopt's random numbers (the CRS2 global stage of LG; NLR's
+// global stage, threshold moves, draws none).
 //
 // NLopt 2.7 has no per-optimiser seed: nlopt::srand sets the Mersenne-Twister generator that every
 // stochastic algorithm draws from (nlopt::opt::set_param has no seed parameter).  In Debian's

@@ -214,6 +214,50 @@ TEST(Nlr, BoxLeastSquaresMatchesTheActiveSetOnTheFullProblem) {
   }
 }
 
+TEST(Nlr, BoxLeastSquaresFromTheNormalEquationsAgreesAndRefusesIllConditionedOnes) {
+  // box_least_squares compresses through the Cholesky factor of the Gram matrix when that loses
+  // few digits and through a Householder QR otherwise; box_least_squares_gram (the threshold
+  // moves of NLR's global stage) has only the Gram matrix.  Both must give the constrained
+  // minimum of the full problem, and the Gram form must refuse what it cannot solve accurately.
+  std::mt19937 gen(11);
+  std::normal_distribution<double> normal;
+  for (const double tie : {0.3, 1e-7}) {  // columns 4 and 5 nearly collinear for the second
+    Eigen::MatrixXd a(500, 6);
+    for (Eigen::Index t = 0; t < a.rows(); ++t) {
+      for (Eigen::Index j = 0; j < 5; ++j) a(t, j) = normal(gen);
+      a(t, 5) = a(t, 4) + tie * normal(gen);
+    }
+    Eigen::VectorXd b = 2.0 * a.col(0) - 1.5 * a.col(3) + a.col(4) + a.col(5);
+    for (Eigen::Index t = 0; t < b.size(); ++t) b(t) += 0.1 * normal(gen);
+    const Eigen::VectorXd lo = Eigen::VectorXd::Zero(6);
+    const Eigen::VectorXd hi =
+        Eigen::VectorXd::Constant(6, std::numeric_limits<double>::infinity());
+    std::vector<int> at_bound;
+    const Eigen::VectorXd z = detail::box_least_squares(a, b, lo, hi, &at_bound);
+    EXPECT_EQ(at_bound[3], 1) << tie;
+    const Eigen::VectorXd g = a.transpose() * (a * z - b);
+    for (Eigen::Index j = 0; j < 6; ++j) {
+      EXPECT_GE(z(j), 0.0);
+      if (at_bound[static_cast<std::size_t>(j)])
+        EXPECT_GE(g(j), -1e-8 * b.norm()) << tie << " " << j;
+      else
+        EXPECT_NEAR(g(j), 0.0, 1e-8 * b.norm()) << tie << " " << j;
+    }
+    Eigen::MatrixXd gram = a.transpose() * a;
+    const Eigen::VectorXd atb = a.transpose() * b;
+    Eigen::VectorXd zg;
+    double rss = -1;
+    const bool solved = detail::box_least_squares_gram(gram, atb, b.squaredNorm(), lo, hi, zg, rss);
+    if (tie > 1e-3) {
+      ASSERT_TRUE(solved);
+      EXPECT_LT((zg - z).norm(), 1e-10 * z.norm());
+      EXPECT_NEAR(rss, (a * z - b).squaredNorm(), 1e-10 * b.squaredNorm());
+    } else {
+      EXPECT_FALSE(solved) << "cond(A) ~ 1e7 must be left to the QR";
+    }
+  }
+}
+
 TEST(Nlr, FixedOrderAndJointSolverAgree) {
   const auto& rt = round_trip();
   NlrOptions o;

@@ -74,6 +74,8 @@ struct StartLog {
   double final_percent = 0;              ///< RSS/SSS % at the local minimum
   std::vector<double> final_thresholds;  ///< [m]
   bool distinct = false;                 ///< a minimum not met by an earlier start of this M
+  int iterations = 0;                    ///< of the local search
+  double seconds = 0;                    ///< wall time of the local search
 };
 
 /// Everything an identification returns besides the model itself.

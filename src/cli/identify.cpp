@@ -1,10 +1,13 @@
 // `identify`, `validate` and `compare`: the paper's methods from the command line.
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
+#include <thread>
 
 #include "commands.hpp"
 #include "friction/methods.hpp"
@@ -40,7 +43,9 @@ void add_method_options(CLI::App& c, MethodCliOptions& m) {
   c.add_option("--operators", m.operators, "NLR/DNLRX: fit this M only (no selection)");
   c.add_option("--spring-order", m.spring_order, "DNLRX: fix the spring-filter order n");
   c.add_option("--input-order", m.input_order, "DNLRX: fix the input-filter order nx");
-  c.add_flag("--no-global", m.no_global, "Skip the NLopt global stages (faster, less robust)");
+  c.add_flag(
+      "--no-global", m.no_global,
+      "Skip the global stages: NLR's threshold moves, LG's NLopt search (faster, less robust)");
   c.add_option("--seed", m.seed, "Seed of the global stages")->capture_default_str();
 }
 
@@ -284,6 +289,7 @@ struct CompareOptions {
   std::string data, validate, report;
   double holdout = 0.3;
   std::vector<std::string> methods{"LG", "NLR", "DNLRX"};
+  unsigned threads = 0;
   InputOptions input;
   OutputOptions output;
   MethodCliOptions method;
@@ -296,22 +302,26 @@ int run_compare(const CompareOptions& o) {
   add_warnings(doc, rs.warnings);
   doc["data"] = rs.data;
   doc["methods"] = Json::array();
-  std::vector<report::MethodFit> fits;
-  Progress progress;
-  for (const auto& name : o.methods) {
-    const std::string type = method_type(name);
+  // The methods are independent, so they run on concurrent threads (`--threads`, one per core
+  // by default); each writes only its own slot, and the rows, warnings and report are assembled
+  // in the order asked, so the document does not depend on the thread count.
+  struct Outcome {
     Json row;
+    std::vector<std::string> warnings;
+    std::string error;
+    std::optional<report::MethodFit> fit;
+  };
+  std::vector<Outcome> outcomes(o.methods.size());
+  auto run_one = [&](std::size_t i) {
+    const std::string type = method_type(o.methods[i]);
+    Outcome& out = outcomes[i];
+    Json& row = out.row;
     row["method"] = method_name(type);
     const auto start = std::chrono::steady_clock::now();
     try {
-      progress.update("compare: identifying " + method_name(type) + " ...");
       IdentifiedModel m = identify_model(type, rs.estimation, o.method.method());
-      progress.update("compare: validating " + method_name(type) + " ...");
       const Validation v = validate_model(m.model, rs.validation);
-      for (const auto& w : m.report.warnings) {
-        std::cerr << "warning: " << method_name(type) << ": " << w << "\n";
-        doc["warnings"].push_back(method_name(type) + ": " + w);
-      }
+      for (const auto& w : m.report.warnings) out.warnings.push_back(method_name(type) + ": " + w);
       row["model"] = m.model.to_json();
       row["parameters"] = m.model.parameter_count();
       row["estimation"] = errors_to_json(m.report.estimation);
@@ -320,18 +330,47 @@ int run_compare(const CompareOptions& o) {
       row["identification"] = report_to_json(m.report);
       row["warnings"] = m.report.warnings;
       if (!o.report.empty())
-        fits.push_back({method_name(type),
-                        m.report.estimation_simulated.size() == rs.estimation.size()
-                            ? m.report.estimation_simulated
-                            : validate_model(m.model, rs.estimation).simulated,
-                        v.simulated});
+        out.fit = report::MethodFit{method_name(type),
+                                    m.report.estimation_simulated.size() == rs.estimation.size()
+                                        ? m.report.estimation_simulated
+                                        : validate_model(m.model, rs.estimation).simulated,
+                                    v.simulated};
     } catch (const std::exception& e) {
       row["error"] = e.what();
-      std::cerr << "error: " << method_name(type) << ": " << e.what() << "\n";
+      out.error = method_name(type) + ": " + e.what();
     }
     row["seconds"] =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    doc["methods"].push_back(row);
+  };
+  Progress progress;
+  {
+    std::string names;
+    for (const auto& name : o.methods)
+      names += (names.empty() ? "" : ", ") + method_name(method_type(name));
+    progress.update("compare: identifying and validating " + names + " ...");
+  }
+  const std::size_t threads = std::min<std::size_t>(
+      o.methods.size(),
+      o.threads > 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency()));
+  {
+    std::atomic<std::size_t> next{0};
+    auto worker = [&] {
+      for (std::size_t i = next++; i < o.methods.size(); i = next++) run_one(i);
+    };
+    std::vector<std::thread> pool;
+    for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(worker);
+    worker();
+    for (auto& t : pool) t.join();
+  }
+  std::vector<report::MethodFit> fits;
+  for (auto& out : outcomes) {
+    for (const auto& w : out.warnings) {
+      std::cerr << "warning: " << w << "\n";
+      doc["warnings"].push_back(w);
+    }
+    if (!out.error.empty()) std::cerr << "error: " << out.error << "\n";
+    if (out.fit) fits.push_back(std::move(*out.fit));
+    doc["methods"].push_back(std::move(out.row));
   }
   progress.done();
   bool any = false;
@@ -428,6 +467,9 @@ Action register_compare(CLI::App& root) {
       ->capture_default_str();
   c->add_option("--methods", o->methods, "Methods to compare (default LG,NLR,DNLRX)")
       ->delimiter(',');
+  c->add_option("--threads", o->threads,
+                "Methods identified concurrently on this many threads (0: one per core); the "
+                "result does not depend on it");
   add_method_options(*c, o->method);
   add_input_options(*c, o->input);
   add_output_options(*c, o->output);
