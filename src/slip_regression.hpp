@@ -121,24 +121,6 @@ inline Eigen::VectorXd lagged(const Eigen::Ref<const Eigen::VectorXd>& c, Eigen:
   return out;
 }
 
-/// min ||A z - b|| subject to lo <= z <= hi (entries may be +-infinity) by an active-set method
-/// (Lawson-Hanson generalised to two-sided bounds).  Columns are scaled to unit norm internally;
-/// the free subproblems are solved by column-pivoted QR, so a rank-deficient free set gives a
-/// basic solution, never a NaN.  Converges in a finite number of steps for this convex problem.
-/// `at_bound` (optional) receives 1 for every variable left on a bound.
-///
-/// Compression: with A = Q R (N > P), ||A z - b||^2 = ||R z - Q^T b||^2 + const, so one O(N P^2)
-/// factorisation turns the problem into a P x P one and every active-set step (each a fresh QR of
-/// the free columns) costs O(P^3) instead of O(N P^2).  Q is orthogonal, so the column norms, the
-/// conditioning and hence the rank decisions are those of A itself.
-/// Storage box_least_squares may keep from call to call (N x P; see Workspace in nlr.cpp).
-struct BoxLeastSquaresStorage {
-  Eigen::MatrixXd scaled;
-  Eigen::VectorXd rhs;
-  Eigen::MatrixXd gram;
-  Eigen::LLT<Eigen::MatrixXd> llt;
-};
-
 /// The active-set solve of box_least_squares on its compressed form: min ||as z - bs|| with as
 /// (P x P, or N x P uncompressed) the column-scaled regressors, `scale` their column norms and
 /// `b_norm` = ||b|| (for the optimality tolerance).  Returns the unscaled solution.
@@ -251,6 +233,48 @@ inline Eigen::VectorXd box_least_squares_reduced(const Eigen::MatrixXd& as,
   return z.cwiseQuotient(scale);
 }
 
+/// The compression of box_least_squares from the normal equations: `gram` holds A^T A in its
+/// lower triangle and is scaled in place to unit diagonal; `scale` receives the column norms (1
+/// for a zero column).  With L L^T its Cholesky factorisation, R = L^T and Q^T b = L^-1 A^T b are
+/// the QR's compression up to the signs of R's rows, as long as the normal equations lose few
+/// digits: false (as, bs untouched) unless the reciprocal condition of the scaled Gram matrix
+/// exceeds 1e-10, i.e. cond(A) below 1e5, at most 5 of 16 digits lost (a zero column fails).
+inline bool compress_by_gram(Eigen::MatrixXd& gram, const Eigen::VectorXd& atb,
+                             Eigen::LLT<Eigen::MatrixXd>& llt, Eigen::VectorXd& scale,
+                             Eigen::MatrixXd& as, Eigen::VectorXd& bs) {
+  const Eigen::Index p = gram.cols();
+  scale.resize(p);
+  for (Eigen::Index j = 0; j < p; ++j) {
+    const double s = std::sqrt(gram(j, j));
+    scale(j) = s > 0.0 ? s : 1.0;
+  }
+  for (Eigen::Index j = 0; j < p; ++j)
+    for (Eigen::Index i = j; i < p; ++i) gram(i, j) /= scale(i) * scale(j);
+  llt.compute(gram);
+  if (llt.info() != Eigen::Success || !(llt.rcond() > 1e-10)) return false;
+  as = llt.matrixU();
+  bs = llt.matrixL().solve(atb.cwiseQuotient(scale).eval());
+  return true;
+}
+
+/// min ||A z - b|| subject to lo <= z <= hi (entries may be +-infinity) by an active-set method
+/// (Lawson-Hanson generalised to two-sided bounds).  Columns are scaled to unit norm internally;
+/// the free subproblems are solved by column-pivoted QR, so a rank-deficient free set gives a
+/// basic solution, never a NaN.  Converges in a finite number of steps for this convex problem.
+/// `at_bound` (optional) receives 1 for every variable left on a bound.
+///
+/// Compression: with A = Q R (N > P), ||A z - b||^2 = ||R z - Q^T b||^2 + const, so one O(N P^2)
+/// factorisation turns the problem into a P x P one and every active-set step (each a fresh QR of
+/// the free columns) costs O(P^3) instead of O(N P^2).  Q is orthogonal, so the column norms, the
+/// conditioning and hence the rank decisions are those of A itself.
+/// Storage box_least_squares may keep from call to call (N x P; see Workspace in nlr.cpp).
+struct BoxLeastSquaresStorage {
+  Eigen::MatrixXd scaled;
+  Eigen::VectorXd rhs;
+  Eigen::MatrixXd gram;
+  Eigen::LLT<Eigen::MatrixXd> llt;
+};
+
 inline Eigen::VectorXd box_least_squares(const Eigen::MatrixXd& a, const Eigen::VectorXd& b,
                                          const Eigen::VectorXd& lo, const Eigen::VectorXd& hi,
                                          std::vector<int>* at_bound = nullptr,
@@ -262,25 +286,12 @@ inline Eigen::VectorXd box_least_squares(const Eigen::MatrixXd& a, const Eigen::
   BoxLeastSquaresStorage local;
   BoxLeastSquaresStorage& big = storage ? *storage : local;
   if (a.rows() > p) {
-    // Compression.  First the Gram matrix in one blocked pass (N P^2 / 2 multiply-adds at the
-    // speed of a matrix product) and its Cholesky factor L L^T: R = L^T and Q^T b = L^-1 A^T b
-    // are the QR's compression up to the signs of R's rows, as long as the normal equations lose
-    // few digits, i.e. when the reciprocal condition of the scaled Gram matrix exceeds 1e-10
-    // (cond(A) below 1e5: at most 5 of 16 digits).  Otherwise, and for a zero column, the
-    // Householder QR of A (4-5x slower at N = 10^4, P = 10).
+    // Compression: the Gram matrix in one blocked pass (N P^2 / 2 multiply-adds at the speed of
+    // a matrix product) and its Cholesky factor when well conditioned; otherwise the Householder
+    // QR of A (4-5x slower at N = 10^4, P = 10).
     big.gram.setZero(p, p);
     big.gram.template selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
-    for (Eigen::Index j = 0; j < p; ++j) {
-      const double s = std::sqrt(big.gram(j, j));
-      scale(j) = s > 0.0 ? s : 1.0;
-    }
-    for (Eigen::Index j = 0; j < p; ++j)
-      for (Eigen::Index i = j; i < p; ++i) big.gram(i, j) /= scale(i) * scale(j);
-    big.llt.compute(big.gram);
-    if (big.llt.info() == Eigen::Success && big.llt.rcond() > 1e-10) {
-      as = big.llt.matrixU();
-      bs = big.llt.matrixL().solve((a.transpose() * b).cwiseQuotient(scale).eval());
-    } else {
+    if (!compress_by_gram(big.gram, a.transpose() * b, big.llt, scale, as, bs)) {
       big.scaled.resize(a.rows(), p);
       big.scaled.noalias() = a * scale.cwiseInverse().asDiagonal();
       big.rhs = b;
@@ -310,19 +321,11 @@ inline bool box_least_squares_gram(const Eigen::MatrixXd& gram, const Eigen::Vec
                                    double btb, const Eigen::VectorXd& lo, const Eigen::VectorXd& hi,
                                    Eigen::VectorXd& z, double& rss,
                                    std::vector<int>* at_bound = nullptr) {
-  const Eigen::Index p = gram.cols();
-  Eigen::VectorXd scale(p);
-  for (Eigen::Index j = 0; j < p; ++j) {
-    if (!(gram(j, j) > 0.0)) return false;
-    scale(j) = std::sqrt(gram(j, j));
-  }
-  Eigen::MatrixXd g(p, p);
-  for (Eigen::Index j = 0; j < p; ++j)
-    for (Eigen::Index i = j; i < p; ++i) g(i, j) = gram(i, j) / (scale(i) * scale(j));
-  const Eigen::LLT<Eigen::MatrixXd> llt(g);
-  if (llt.info() != Eigen::Success || !(llt.rcond() > 1e-10)) return false;
-  const Eigen::MatrixXd as = llt.matrixU();
-  const Eigen::VectorXd bs = llt.matrixL().solve(atb.cwiseQuotient(scale).eval());
+  Eigen::MatrixXd g = gram;
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::VectorXd scale, bs;
+  Eigen::MatrixXd as;
+  if (!compress_by_gram(g, atb, llt, scale, as, bs)) return false;
   z = box_least_squares_reduced(as, bs, scale, std::sqrt(std::max(btb, 0.0)), lo, hi, at_bound);
   // ||A z - b||^2 = ||b||^2 - ||Q^T b||^2 + ||R z_s - Q^T b||^2 with z_s the scaled solution.
   const Eigen::VectorXd fit = as * z.cwiseProduct(scale) - bs;
