@@ -354,6 +354,20 @@ Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, 
   return fit;
 }
 
+// The log entry of one local search from thresholds `start` (distinct left false).
+StartLog start_log(const Data& d, std::string kind, std::vector<double> start, const Fit& f) {
+  StartLog log;
+  log.operators = f.s.size();
+  log.kind = std::move(kind);
+  log.start_thresholds = std::move(start);
+  log.start_percent = f.start_percent;
+  log.final_percent = f.percent;
+  log.final_thresholds = d.sb.thresholds(f.s);
+  log.iterations = f.iterations;
+  log.seconds = f.seconds;
+  return log;
+}
+
 // Levenberg-Marquardt moves rho only along its local descent, and a wrong initial state is then
 // compensated by biased thresholds: on the round-trip study (studies.md 1) the best fit's
 // concentrated cost was often 2-15 % above what the same thresholds gave with the initial state
@@ -387,17 +401,7 @@ void refine_initial_state(const Data& d, Fit& best, const NlrOptions& o, bool th
     const double gain = best.percent - percent_of(vp_evaluate(d, best.s, rho, false, ws).r);
     if (!(gain > 2.0 * d.floor_percent / static_cast<double>(d.y.size()))) return;
     const Fit f = local_search(d, best.s, rho, o, best.percent);
-    StartLog log;
-    log.operators = m;
-    log.kind = thorough ? "initial-state" : "initial-state-quick";
-    log.start_thresholds = thr;
-    log.start_percent = f.start_percent;
-    log.final_percent = f.percent;
-    log.final_thresholds = d.sb.thresholds(f.s);
-    log.iterations = f.iterations;
-    log.seconds = f.seconds;
-    log.distinct = false;
-    rep.starts.push_back(std::move(log));
+    rep.starts.push_back(start_log(d, thorough ? "initial-state" : "initial-state-quick", thr, f));
     ++rep.convergence.local_searches;
     if (!(f.percent < best.percent * (1.0 - 1e-6))) return;
     best = f;
@@ -562,15 +566,7 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
   Fit best;
   std::vector<double> minima;
   auto record = [&](const std::string& kind, const std::vector<double>& thr0, const Fit& f) {
-    StartLog log;
-    log.operators = m;
-    log.kind = kind;
-    log.start_thresholds = thr0;
-    log.start_percent = f.start_percent;
-    log.final_percent = f.percent;
-    log.final_thresholds = d.sb.thresholds(f.s);
-    log.iterations = f.iterations;
-    log.seconds = f.seconds;
+    StartLog log = start_log(d, kind, thr0, f);
     log.distinct = std::none_of(minima.begin(), minima.end(), [&](double v) {
       return std::abs(v - f.percent) <= o.stall_tolerance * std::max(v, f.percent);
     });
