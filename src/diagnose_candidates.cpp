@@ -2,7 +2,6 @@
 // the current model, the acceptance rule as a Verdict, the greedy forward pass and the backward
 // pass.
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -10,13 +9,13 @@
 #include <limits>
 #include <numeric>
 #include <optional>
-#include <thread>
 
 #include "diagnose_stages.hpp"
 #include "extension_steps.hpp"
 #include "friction/identification.hpp"
 #include "friction/metrics.hpp"
 #include "friction/noise_colour.hpp"
+#include "parallel_for.hpp"
 
 namespace friction::diagnose_detail {
 
@@ -288,26 +287,9 @@ std::vector<Tried> fit_candidates(const Context& c, const State& s,
   std::stable_sort(queue.begin(), queue.end(), [&](std::size_t a, std::size_t b) {
     return profile_axes(todo[a], c.scales).size() > profile_axes(todo[b], c.scales).size();
   });
-  std::atomic<std::size_t> next{0};
-  std::vector<std::exception_ptr> failed(todo.size());
-  auto work = [&] {
-    for (std::size_t i; (i = next.fetch_add(1)) < queue.size();) {
-      try {
-        out[queue[i]] = fit_candidate(c, s, todo[queue[i]], ev);
-      } catch (...) {
-        failed[queue[i]] = std::current_exception();
-      }
-    }
-  };
-  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-  const std::size_t threads =
-      std::min<std::size_t>(c.options.threads ? c.options.threads : cores, todo.size());
-  std::vector<std::thread> pool_threads;
-  for (std::size_t k = 1; k < threads; ++k) pool_threads.emplace_back(work);
-  work();
-  for (auto& t : pool_threads) t.join();
-  for (const auto& f : failed)
-    if (f) std::rethrow_exception(f);
+  detail::parallel_for(
+      todo.size(), c.options.threads,
+      [&](std::size_t i) { out[i] = fit_candidate(c, s, todo[i], ev); }, queue);
   check_nested(c, s, out);
   return out;
 }

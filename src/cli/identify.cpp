@@ -1,5 +1,4 @@
 // `identify`, `validate` and `compare`: the paper's methods from the command line.
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -7,8 +6,8 @@
 #include <iostream>
 #include <optional>
 #include <sstream>
-#include <thread>
 
+#include "../parallel_for.hpp"
 #include "commands.hpp"
 #include "friction/methods.hpp"
 #include "progress.hpp"
@@ -349,19 +348,7 @@ int run_compare(const CompareOptions& o) {
       names += (names.empty() ? "" : ", ") + method_name(method_type(name));
     progress.update("compare: identifying and validating " + names + " ...");
   }
-  const std::size_t threads = std::min<std::size_t>(
-      o.methods.size(),
-      o.threads > 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency()));
-  {
-    std::atomic<std::size_t> next{0};
-    auto worker = [&] {
-      for (std::size_t i = next++; i < o.methods.size(); i = next++) run_one(i);
-    };
-    std::vector<std::thread> pool;
-    for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(worker);
-    worker();
-    for (auto& t : pool) t.join();
-  }
+  detail::parallel_for(o.methods.size(), o.threads, run_one);
   std::vector<report::MethodFit> fits;
   for (auto& out : outcomes) {
     for (const auto& w : out.warnings) {
