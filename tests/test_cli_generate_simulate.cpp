@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <fstream>
 #include <string>
 
 #include "friction/csv.hpp"
@@ -106,6 +107,43 @@ TEST(CliGenerate, JsonSummaryNamesTheRecord) {
   EXPECT_TRUE(doc["warnings"].is_array());
   EXPECT_EQ(doc["model"]["type"], "maxwell-slip");
   EXPECT_EQ(doc["record"]["seed"], 4);
+}
+
+// compare identifies its methods on concurrent threads; the document (every row, warning and
+// parameter, in the order asked) must be the same on one thread and on more threads than methods.
+TEST(CliCompare, TheDocumentDoesNotDependOnTheThreadCount) {
+  TempDir dir;
+  const std::string est = dir.file("est.csv"), val = dir.file("val.csv");
+  ASSERT_EQ(
+      run_cli("generate --model maxwell-slip" + kShort + "--noise 0.01 --seed 21 --out " + est)
+          .status,
+      0);
+  ASSERT_EQ(
+      run_cli("generate --model maxwell-slip" + kShort + "--noise 0.01 --seed 22 --out " + val)
+          .status,
+      0);
+  auto strip_seconds = [](nlohmann::json& j, auto& self) -> void {
+    if (j.is_object()) {
+      j.erase("seconds");
+      for (auto& [k, v] : j.items()) self(v, self);
+    } else if (j.is_array()) {
+      for (auto& v : j) self(v, self);
+    }
+  };
+  std::vector<nlohmann::json> docs;
+  for (const std::string threads : {"1", "4"}) {
+    const std::string out = dir.file("compare-" + threads + ".json");
+    const auto r = run_cli("compare --data " + est + " --validate " + val + " --threads " +
+                           threads + " --out " + out);
+    ASSERT_EQ(r.status, 0) << r.err;
+    nlohmann::json doc = nlohmann::json::parse(std::ifstream(out));
+    ASSERT_EQ(doc["methods"].size(), 3u);
+    for (const auto& row : doc["methods"]) EXPECT_FALSE(row.contains("error")) << row["method"];
+    strip_seconds(doc, strip_seconds);
+    doc.erase("command");
+    docs.push_back(std::move(doc));
+  }
+  EXPECT_EQ(docs[0], docs[1]) << nlohmann::json::diff(docs[0], docs[1]).dump(1);
 }
 
 TEST(CliUsage, BadUsageExitsWithTwoAndBadDataWithOne) {
