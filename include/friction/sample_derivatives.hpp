@@ -104,6 +104,8 @@ struct DerivativeWindows {
   /// coefficient fitted by least squares on s_hat comes out times the true one.
   double velocity_regression_factor = 1;
   double acceleration_regression_factor = 1;
+
+  bool operator==(const DerivativeWindows&) const = default;
 };
 
 struct SampleDerivatives {
