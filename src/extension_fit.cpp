@@ -86,7 +86,168 @@ struct ExtendedCost {
   }
 };
 
+// The same Jacobian at a fraction of the cost, from the structure of the model.  Forward-mode
+// differentiation of the whole model carries every parameter through every operator: 3M + E lanes
+// (in passes of 16) on each of the M operators, although operator i depends only on its own
+// (log k_i, log Delta_i, rho_i) and on what the pieces hand to the base.  And the pieces never see
+// the base: the level (Stribeck, position, drift, normal load, through the lag), the shifted
+// increment dx (delay), the asymmetry a and the added force (viscous, offset, inertia) follow from
+// the record and the E piece parameters alone, and MaxwellSlip::step is a sum of independent
+// operators (maxwell_slip.hpp, eqs. 4-5).  So:
+//   1. the pieces run once over the record with Jets of the E piece parameters, on a base whose
+//      one operator has stiffness 0 (it contributes nothing): the slip limits' factors
+//      level (1 +- a), dx_k and the added force;
+//   2. each operator runs alone with Jets of those E lanes plus its log Delta_i and rho_i, with the
+//      limits and increments of pass 1.  Its force k_i delta_i is linear in k_i, so the log k_i
+//      column is k_i delta_i, and the other lanes are k_i times delta_i's.
+// About M (E + 2) lanes per sample instead of M (3M + E) rounded up to passes of 16: at M = 5 and
+// one piece parameter 5 x 4 against 5 x 16.  The arithmetic of every lane is the one of the full
+// model, so the Jacobian agrees with it to rounding (the test compares them).  It needs F0 given
+// (a reference force > 0: otherwise F0 is the base's sliding force and couples all operators) and
+// E + 2 <= 16; other fits keep the whole-model derivatives.
+class StructuredSlipCost final : public ceres::CostFunction {
+ public:
+  explicit StructuredSlipCost(ExtendedCost* functor) : functor_(functor), whole_(functor) {
+    whole_.AddParameterBlock(static_cast<int>(2 * functor->operators + pieces()));
+    whole_.AddParameterBlock(static_cast<int>(functor->operators));
+    whole_.SetNumResiduals(static_cast<int>(functor->record->size()));
+    *mutable_parameter_block_sizes() = whole_.parameter_block_sizes();
+    set_num_residuals(whole_.num_residuals());
+  }
+
+  bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
+    if (!jacobians || !structured()) return whole_.Evaluate(p, residuals, jacobians);
+    if (!(*functor_)(p, residuals)) return false;
+    const std::size_t e = pieces();
+    if (e + 2 <= 4) return jacobian<4, 4>(p, jacobians);
+    if (e <= 4) return jacobian<4, 8>(p, jacobians);
+    if (e + 2 <= 8) return jacobian<8, 8>(p, jacobians);
+    if (e <= 8) return jacobian<8, 16>(p, jacobians);
+    return jacobian<16, 16>(p, jacobians);
+  }
+
+  const ceres::CostFunction& whole_model() const { return whole_; }
+
+  /// Whether Evaluate takes the structured path (see above).
+  bool structured() const { return functor_->pieces.reference_force > 0 && pieces() + 2 <= 16; }
+
+ private:
+  std::size_t pieces() const {
+    std::size_t e = 0;
+    functor_->pieces.for_each_parameter([&](Effect, std::string_view, const double&) { ++e; });
+    return e;
+  }
+
+  // NF lanes for the pieces' pass (>= E), NO for an operator's (>= E + 2: its log Delta and rho;
+  // its log k enters linearly and is differentiated by hand).
+  template <int NF, int NO>
+  bool jacobian(double const* const* p, double** jacobians) const {
+    static_assert(NO >= NF, "an operator's Jets carry the pieces' lanes");
+    using JF = ceres::Jet<double, NF>;
+    using JO = ceres::Jet<double, NO>;
+    using std::exp;
+    const ExtendedCost& f = *functor_;
+    const Record& r = *f.record;
+    const std::size_t m = f.operators, n = r.size(), e = pieces();
+    const std::size_t cols = 2 * m + e;
+    ExtensionParameters<JF> ext = f.pieces.template cast<JF>([](double v) { return JF(v); });
+    std::size_t j = 0;
+    ext.for_each_parameter([&](Effect, std::string_view, JF& v) {
+      v = JF(p[0][2 * m + j], static_cast<int>(j));
+      ++j;
+    });
+    ext.reference_force = JF(f.pieces.reference_force);
+    auto lift = [](const JF& v) {
+      JO out(v.a);
+      out.v.template head<NF>() = v.v;
+      return out;
+    };
+    thread_local std::vector<JF> x;
+    thread_local std::vector<JO> dx, up, down;
+    x.resize(n), dx.resize(n), up.resize(n), down.resize(n);
+    JO a(0);
+    double* jt = jacobians[0];
+    double* jr = jacobians[1];
+    try {
+      // Pass 1: the pieces over the record; the added force starts the pieces' columns.
+      MaxwellSlipParameters<JF> silent;
+      silent.stiffness = {JF(0)};
+      silent.threshold = {JF(1)};
+      Extended<MaxwellSlip<JF>> pieces_only(MaxwellSlip<JF>(std::move(silent), true),
+                                            std::move(ext), 2);
+      const JF af = pieces_only.asymmetry();
+      a = lift(af);
+      for (std::size_t k = 0; k < n; ++k) x[k] = JF(r.displacement[k]);
+      for_each_extended_step(
+          pieces_only, std::span<const double>(r.time), std::span<const JF>(x),
+          std::span<const double>(r.normal), &f.windows,
+          [&](std::size_t k, const ExtendedMotion<JF>& c, const JF& added) {
+            const JF& level = pieces_only.level();
+            dx[k] = lift(c.dx);
+            up[k] = lift(level * (JF(1) + af));  // the slip limits of maxwell_slip.hpp's step
+            down[k] = lift(level * (JF(1) - af));
+            if (jt)
+              for (std::size_t q = 0; q < e; ++q) jt[k * cols + 2 * m + q] = -f.scale * added.v[q];
+          });
+      // Pass 2: operator by operator (eqs. 4-5 of maxwell_slip.hpp, one operator).
+      const int own = static_cast<int>(e);
+      for (std::size_t i = 0; i < m; ++i) {
+        const double k_i = exp(p[0][i]);
+        const JO limit = exp(JO(p[0][m + i], own));
+        JO delta = clamp(JO((JO(p[1][i], own + 1) + a) * limit), JO(-(JO(1) - a) * limit),
+                         JO((JO(1) + a) * limit));
+        for (std::size_t k = 0; k < n; ++k) {
+          delta = clamp(JO(delta + dx[k]), JO(-down[k] * limit), JO(up[k] * limit));
+          const double g = -f.scale * k_i;  // d residual / d delta
+          if (jt) {
+            double* row = jt + k * cols;
+            for (std::size_t q = 0; q < e; ++q) row[2 * m + q] += g * delta.v[q];
+            row[i] = g * delta.a;  // d(k delta) / d log k = k delta
+            row[m + i] = g * delta.v[own];
+          }
+          if (jr) jr[k * m + i] = g * delta.v[own + 1];
+        }
+      }
+    } catch (const InvalidParameter&) {
+      return false;
+    }
+    return true;
+  }
+
+  ExtendedCost* functor_;  // owned by whole_
+  ceres::DynamicAutoDiffCostFunction<ExtendedCost, 16> whole_;
+};
+
 }  // namespace
+
+ExtendedSlipJacobian extended_slip_jacobian(const Record& r,
+                                            const MaxwellSlipParameters<double>& base,
+                                            const std::vector<double>& rho,
+                                            const ExtensionParameters<double>& ext,
+                                            bool whole_model) {
+  const std::size_t m = base.size(), n = r.size();
+  FRICTION_CHECK(rho.size() == m, "extended_slip_jacobian: ", rho.size(), " initial states for ", m,
+                 " operators");
+  std::vector<double> theta;
+  for (double k : base.stiffness) theta.push_back(std::log(k));
+  for (double d : base.threshold) theta.push_back(std::log(d));
+  ext.for_each_parameter([&](Effect, std::string_view, const double& v) { theta.push_back(v); });
+  const double rms = std::sqrt(sum_of_squares(r.force) / static_cast<double>(n));
+  StructuredSlipCost cost(new ExtendedCost{&r, m, ext, rms > 0 ? 1.0 / rms : 1.0,
+                                           record_derivative_windows(r.time, r.displacement)});
+  ExtendedSlipJacobian out;
+  out.structured = !whole_model && cost.structured();
+  out.residual.resize(static_cast<Eigen::Index>(n));
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jt(n, theta.size()),
+      jr(n, m);
+  const double* p[] = {theta.data(), rho.data()};
+  double* j[] = {jt.data(), jr.data()};
+  out.ok = whole_model ? cost.whole_model().Evaluate(p, out.residual.data(), j)
+                       : cost.Evaluate(p, out.residual.data(), j);
+  out.theta = jt;
+  out.rho = jr;
+  return out;
+}
 
 // Box of each extension parameter during the fit: the effect table's rule over the record's scales.
 ExtensionBounds extension_parameter_bounds(Effect e, std::string_view name, double f0,
@@ -117,12 +278,8 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   for (double& v : rho) v = std::clamp(v, -1.0, 1.0);
 
   double rms = std::sqrt(sum_of_squares(r.force) / static_cast<double>(r.size()));
-  auto* functor = new ExtendedCost{&r, m, ext0, rms > 0 ? 1.0 / rms : 1.0,
-                                   record_derivative_windows(r.time, r.displacement)};
-  auto* cost = new ceres::DynamicAutoDiffCostFunction<ExtendedCost, 16>(functor);
-  cost->AddParameterBlock(static_cast<int>(theta.size()));
-  cost->AddParameterBlock(static_cast<int>(m));
-  cost->SetNumResiduals(static_cast<int>(r.size()));
+  auto* cost = new StructuredSlipCost(new ExtendedCost{
+      &r, m, ext0, rms > 0 ? 1.0 / rms : 1.0, record_derivative_windows(r.time, r.displacement)});
   ceres::Problem problem;
   problem.AddResidualBlock(cost, nullptr, theta.data(), rho.data());
   for (std::size_t i = 0; i < m; ++i) {

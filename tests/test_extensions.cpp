@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "friction/dnlrx.hpp"
+#include "friction/extension_fit.hpp"
 #include "friction/extensions.hpp"
 #include "friction/gms.hpp"
 #include "friction/lugre.hpp"
@@ -19,10 +20,12 @@ namespace {
 
 using friction::Effect;
 using friction::Extended;
+using friction::ExtendedSlipJacobian;
 using friction::ExtensionParameters;
 using friction::MaxwellSlip;
 using friction::MaxwellSlipParameters;
 using friction::Motion;
+using friction::Record;
 
 const MaxwellSlipParameters<double> kFour{{4e4, 3e4, 2e4, 1e4}, {1e-6, 3e-6, 7e-6, 15e-6}};
 const double kF0 = 0.42;        // sum k_i Delta_i of kFour [N]
@@ -171,8 +174,8 @@ TEST(Extensions, FrictionalLagDelaysTheVelocityOfTheViscousTerm) {
 }
 
 // Direction-dependent slip limits: sliding levels (1 +- a) F0, no jump anywhere, and, while the
-// level is constant, exactly the symmetric model plus a F0 once every operator has slipped (presliding
-// and rests included); a changing level (here a drift) tells the two apart.
+// level is constant, exactly the symmetric model plus a F0 once every operator has slipped
+// (presliding and rests included); a changing level (here a drift) tells the two apart.
 TEST(Extensions, AsymmetryIsDirectionalSlipLimitsAndAnOffsetWhileTheLevelIsConstant) {
   const double a = 0.2;
   ExtensionParameters<double> p;
@@ -414,6 +417,86 @@ TEST(Extensions, JetDerivativesOfTheNormalLoadPieceOnARecord) {
   }
   EXPECT_GT(norm, 0.0);
   EXPECT_LT(worst, 1e-5 * norm);
+}
+
+// The fit's Jacobian (extension_fit.cpp: the pieces over the record once, then operator by
+// operator) against forward-mode derivatives through the whole model, with piece sets that take
+// each pair of lane widths, an initial state on a slip limit, a delay (the increments carry
+// derivatives) and a normal force, up to every piece at once (14 piece parameters + 2 = 16 lanes);
+// and a set that must take the whole-model path (F0 from the base).
+TEST(ExtendedSlipFit, StructuredJacobianIsTheWholeModels) {
+  Record r;
+  friction::testing::test_excitation(2000, 1e-3, 20e-6, r.time, r.displacement);
+  for (double t : r.time) {
+    r.normal.push_back(2.0 + t);
+    r.force.push_back(0.3 * std::sin(40.0 * t) + 0.05);
+  }
+  const MaxwellSlipParameters<double> base{{4e4, 1e4, 3e3, 800.0}, {2e-6, 12e-6, 3e-5, 8e-5}};
+  const std::vector<double> rho{0.3, -0.5, 1.0, -0.2};
+  const double f0 = base.sliding_force();
+
+  auto with = [&](std::initializer_list<Effect> effects, double reference) {
+    ExtensionParameters<double> p;
+    for (Effect e : effects) p.enable(e);
+    if (p.viscous) p.viscous->viscous = 30.0;
+    if (p.stribeck) p.stribeck = {{1.3 * f0, 4e-4, 1.5}};
+    if (p.frictional_lag) p.frictional_lag->lag_time = 0.004;
+    if (p.asymmetry) p.asymmetry->asymmetry = 0.1;
+    if (p.offset) p.offset->offset = 0.02;
+    if (p.inertia) p.inertia->mass = 2.0;
+    if (p.position_dependence) p.position_dependence = {{0.1 * f0, 3e-4, 0.7}};
+    if (p.drift) p.drift->relative_rate = 0.05;
+    if (p.delay) p.delay->delay = 1.7e-3;
+    if (p.normal_load) p.normal_load->friction_coefficient = f0 / 2.5;
+    p.reference_force = reference;
+    return p;
+  };
+  using enum Effect;
+  struct Case {
+    const char* name;
+    ExtensionParameters<double> ext;
+    bool structured;
+  };
+  const std::vector<Case> cases{
+      {"no piece", with({}, f0), true},
+      {"viscous (4 lanes)", with({viscous}, f0), true},
+      {"stribeck (4 + 8 lanes)", with({stribeck}, f0), true},
+      {"stribeck, lag, viscous (8 lanes)", with({stribeck, frictional_lag, viscous}, f0), true},
+      {"11 piece parameters with a delay (16 lanes)",
+       with({viscous, stribeck, frictional_lag, asymmetry, offset, inertia, drift, delay,
+             normal_load},
+            f0),
+       true},
+      {"stribeck, lag, viscous, offset, drift (8 + 16 lanes)",
+       with({stribeck, frictional_lag, viscous, offset, drift}, f0), true},
+      {"every piece (16 lanes)",
+       with({viscous, stribeck, frictional_lag, asymmetry, offset, inertia, position_dependence,
+             drift, delay, normal_load},
+            f0),
+       true},
+      {"stribeck with F0 from the base", with({stribeck}, 0.0), false},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const ExtendedSlipJacobian fast = friction::extended_slip_jacobian(r, base, rho, c.ext, false);
+    const ExtendedSlipJacobian whole = friction::extended_slip_jacobian(r, base, rho, c.ext, true);
+    ASSERT_TRUE(fast.ok);
+    ASSERT_TRUE(whole.ok);
+    EXPECT_EQ(fast.structured, c.structured);
+    EXPECT_LE((fast.residual - whole.residual).cwiseAbs().maxCoeff(),
+              1e-13 * whole.residual.cwiseAbs().maxCoeff());
+    for (const auto* pair : {&fast.theta, &fast.rho}) {
+      const Eigen::MatrixXd& a = *pair;
+      const Eigen::MatrixXd& b = pair == &fast.theta ? whole.theta : whole.rho;
+      ASSERT_EQ(a.rows(), b.rows());
+      ASSERT_EQ(a.cols(), b.cols());
+      for (Eigen::Index j = 0; j < b.cols(); ++j) {
+        const double scale = b.col(j).cwiseAbs().maxCoeff();
+        EXPECT_GT(scale, 0.0) << "column " << j << " carries no derivative";
+        EXPECT_LE((a.col(j) - b.col(j)).cwiseAbs().maxCoeff(), 1e-11 * scale) << "column " << j;
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -119,6 +119,23 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
                                   const ExtensionParameters<double>& ext0, bool fix_theta,
                                   int max_iterations);
 
+/// The residuals (F - Fhat) / rms(F) of fit_extended_slip's cost at (base, rho, ext) on `r` and its
+/// Jacobian with respect to theta = [log k, log Delta, pieces] and to rho, by the evaluation the
+/// fit uses (the structured one of extension_fit.cpp when it applies: `structured`) or, with
+/// `whole_model`, by forward-mode derivatives through the whole model.  For tests and diagnostics;
+/// ok is false outside the parameters' domain.
+struct ExtendedSlipJacobian {
+  Eigen::VectorXd residual;
+  Eigen::MatrixXd theta, rho;
+  bool structured = false;
+  bool ok = false;
+};
+ExtendedSlipJacobian extended_slip_jacobian(const Record& r,
+                                            const MaxwellSlipParameters<double>& base,
+                                            const std::vector<double>& rho,
+                                            const ExtensionParameters<double>& ext,
+                                            bool whole_model);
+
 /// The pieces with the parameters that refer to F0 (effect table: `static`, `amplitude`,
 /// `friction_coefficient`) converted from the fit's fixed reference force (ext.reference_force) to
 /// `own_f0`, the sliding force of the fitted base, with reference_force 0: what a saved model uses.
