@@ -11,7 +11,8 @@
 #      with find_package(friction CONFIG REQUIRED) and runs it,
 #   6. the suite again under AddressSanitizer + UndefinedBehaviorSanitizer (build-asan/), except
 #      the tests labelled "long" (the statistical studies: many fits of the same code paths, which
-#      the Release pass runs and which would take most of CI's time under ASan).
+#      the Release pass runs and which would take most of CI's time under ASan); their programs
+#      are not built there (FRICTION_BUILD_LONG_TESTS=OFF).
 #      FRICTION_SKIP_SANITIZERS=1 skips this pass (CI always runs it).
 #   7. ThreadSanitizer on the concurrency tests (build-tsan/, only the two test programs that hold
 #      them): diagnose's candidates on four threads, LG's global stages on concurrent threads.
@@ -96,7 +97,8 @@ sanitizer_pass() {
     return 0
   fi
   configure_and_build "$ASAN_BUILD_DIR" -DFRICTION_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-    "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$SANITIZER_OPT_FLAGS" -DFRICTION_BUILD_BENCHMARKS=OFF
+    "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$SANITIZER_OPT_FLAGS" -DFRICTION_BUILD_BENCHMARKS=OFF \
+    -DFRICTION_BUILD_LONG_TESTS=OFF
   ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:detect_stack_use_after_return=1}" \
     UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}" \
     run_ctest "$ASAN_BUILD_DIR" --label-exclude long
@@ -110,7 +112,7 @@ thread_sanitizer_pass() {
   if [[ ! -f "$TSAN_BUILD_DIR/CMakeCache.txt" ]]; then
     cmake -S "$FRICTION_ROOT" -B "$TSAN_BUILD_DIR" -G Ninja -DFRICTION_TSAN=ON \
       -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$SANITIZER_OPT_FLAGS" \
-      -DFRICTION_BUILD_BENCHMARKS=OFF
+      -DFRICTION_BUILD_BENCHMARKS=OFF -DFRICTION_BUILD_LONG_TESTS=OFF
   fi
   say "Building the concurrency tests in $TSAN_BUILD_DIR with $FRICTION_JOBS jobs"
   cmake --build "$TSAN_BUILD_DIR" --parallel "$FRICTION_JOBS" --target test_diagnose test_lg
