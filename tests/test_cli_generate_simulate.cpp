@@ -3,7 +3,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include <sys/wait.h>
+
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <string>
 
@@ -187,6 +190,23 @@ TEST(CliSimulate, NeverLeavesAHalfWrittenOutput) {
           .status,
       1);
   EXPECT_EQ(friction::testing::read_text(out), "precious\n");
+}
+
+// A simulation of a long record is streamed to stdout; a stream that cannot take it (a full disk:
+// /dev/full) is an error, not a silent success with a truncated CSV.
+TEST(CliSimulate, AnOutputThatCannotBeWrittenIsAnError) {
+  TempDir dir;
+  const std::string truth = dir.file("t.json"), rec = dir.file("r.csv"), err = dir.file("err");
+  ASSERT_EQ(run_cli("generate" + kShort + "--out " + rec + " --truth " + truth).status, 0);
+  const char* env = std::getenv("FRICTION_CLI");
+  const std::string cli = env ? env : FRICTION_CLI;
+  const int raw = std::system(("'" + cli + "' simulate --model-file " + truth + " --data " + rec +
+                               " >/dev/full 2>'" + err + "'")
+                                  .c_str());
+  ASSERT_TRUE(WIFEXITED(raw));
+  EXPECT_NE(WEXITSTATUS(raw), 0);
+  EXPECT_NE(friction::testing::read_text(err).find("could not be written"), std::string::npos)
+      << friction::testing::read_text(err);
 }
 
 }  // namespace

@@ -42,6 +42,16 @@ void emit(const OutputOptions& out, const std::string& text) {
   }
 }
 
+void emit_stream(const OutputOptions& out, const std::function<void(std::ostream&)>& write) {
+  if (out.out.empty()) {
+    write(std::cout);
+    std::cout.flush();
+    if (!std::cout) throw FileError("stdout", "the output could not be written");
+  } else {
+    write_file_atomically(out.out, write);
+  }
+}
+
 void emit_table(const OutputOptions& out, const std::string& table, const Json& document) {
   if (out.out.empty()) {
     emit(out, table);

@@ -1,6 +1,8 @@
 // The friction-identify command line (contract: shared/design/cli.md).
 #pragma once
 
+#include <functional>
+#include <iosfwd>
 #include <string>
 #include <vector>
 
@@ -41,6 +43,9 @@ AnyModel load_model(const std::string& path);
 
 /// Writes `text` to `out.out` atomically, or to stdout.
 void emit(const OutputOptions& out, const std::string& text);
+/// The same for output written piece by piece (a CSV of a million samples is not built in memory
+/// first): `write` streams to stdout or, with --out, to the atomically replaced file.
+void emit_stream(const OutputOptions& out, const std::function<void(std::ostream&)>& write);
 
 /// Table output: with --out the table goes to stdout and the file gets the JSON document (what a
 /// script or `simulate --model-file` loads); without it the table goes to stdout.

@@ -212,7 +212,9 @@ Action register_diagnose(CLI::App& root) {
   c->add_option("--baseline", o->baseline, "Baseline model: maxwell-slip (NLR) or lugre (LG)")
       ->capture_default_str();
   c->add_option("--max-operators", o->max_operators, "NLR: largest M tried by the order selection");
-  c->add_flag("--no-global", o->no_global, "Skip the global stages: NLR's threshold moves, LG's NLopt search (faster, less robust)");
+  c->add_flag(
+      "--no-global", o->no_global,
+      "Skip the global stages: NLR's threshold moves, LG's NLopt search (faster, less robust)");
   c->add_option("--seed", o->seed, "Seed of the global stages")->capture_default_str();
   c->add_option("--threads", o->threads,
                 "Candidate fits run on this many threads (0: one per core); the result does not "

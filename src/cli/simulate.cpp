@@ -30,9 +30,7 @@ int run_simulate(const SimulateOptions& o) {
   }
   columns.push_back({"simulated", simulated});
   if (record.has_force()) columns.push_back({"residual", residual});
-  std::ostringstream csv;
-  write_csv(csv, columns);
-  emit(o.output, csv.str());
+  emit_stream(o.output, [&](std::ostream& s) { write_csv(s, columns); });
   return kExitOk;
 }
 
