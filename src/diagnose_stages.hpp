@@ -13,8 +13,8 @@
 // records, the options and the immutable Context) and returns a value.  The candidates of a round
 // are independent fits (fit_candidate), which is what lets them run concurrently; the optimisers
 // hold no global state that one candidate could change for another (Ceres runs single-threaded per
-// fit, the residual buffers are per thread, and the only random numbers are NLopt's, seeded by each
-// global stage itself right before it runs: nlopt_seed.hpp).
+// fit, the residual buffers are per thread, and the only random numbers are those of LG's global
+// stage, drawn from a generator of its own, seeded by LgOptions::seed).
 #pragma once
 
 #include <cstddef>

@@ -11,13 +11,13 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <random>
 #include <sstream>
 #include <utility>
 
 #include "friction/covariance_report.hpp"
 #include "friction/error.hpp"
 #include "friction/motion.hpp"
-#include "nlopt_seed.hpp"
 
 namespace friction {
 namespace {
@@ -270,18 +270,16 @@ struct Point {
   double percent = kHuge;
 };
 
-Point nlopt_run(nlopt::algorithm algo, const Objective& obj, const Box& box, Point start,
-                int evaluations, unsigned seed) {
-  nlopt::opt opt(algo, static_cast<unsigned>(kP + 1));
+// BOBYQA (derivative-free, deterministic) from `start`: the best point it evaluated.
+Point bobyqa(const Objective& obj, const Box& box, Point start, int evaluations) {
+  nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(kP + 1));
   opt.set_lower_bounds(box.lower);
   opt.set_upper_bounds(box.upper);
   opt.set_maxeval(evaluations);
-  if (algo == nlopt::LN_BOBYQA) {
-    opt.set_ftol_rel(1e-9);
-    std::vector<double> step(kP + 1);
-    for (std::size_t i = 0; i <= kP; ++i) step[i] = 0.05 * (box.upper[i] - box.lower[i]);
-    opt.set_initial_step(step);
-  }
+  opt.set_ftol_rel(1e-9);
+  std::vector<double> step(kP + 1);
+  for (std::size_t i = 0; i <= kP; ++i) step[i] = 0.05 * (box.upper[i] - box.lower[i]);
+  opt.set_initial_step(step);
   struct Ctx {
     const Objective* obj;
     Point best;
@@ -298,12 +296,96 @@ Point nlopt_run(nlopt::algorithm algo, const Objective& obj, const Box& box, Poi
   std::vector<double> v = box.clamp(start.v);
   double f = 0;
   try {
-    const auto seeded = detail::seed_nlopt(seed);
     opt.optimize(v, f);
   } catch (const std::exception&) {
     // NLopt stops on round-off or a budget; the best point seen is kept in ctx.
   }
   return ctx.best;
+}
+
+// The global stage: controlled random search with local mutation (Price 1983; Kaelo & Ali 2006,
+// "CRS2-LM").  A population of 10 (n + 1) points, the start and points uniform in the box; each
+// trial reflects a random member through the centroid of the best and n - 1 other random members
+// and replaces the worst member when it is better; when the reflection fails, a point on the line
+// from it through the best, just beyond the best, is tried (the local mutation).  The algorithm of
+// NLopt's GN_CRS2_LM, written here because NLopt draws its random numbers from a generator set by
+// nlopt::srand, state shared by every search of the process (thread-local in Debian's build, but
+// not by contract): this one is the call's own, seeded by LgOptions::seed, so concurrent
+// identifications share nothing and each is reproducible.
+Point controlled_random_search(const Objective& obj, const Box& box, const Point& start,
+                               int evaluations, unsigned seed) {
+  const std::size_t n = box.lower.size();
+  const std::size_t size = 10 * (n + 1);
+  std::mt19937_64 gen(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<Point> pop;
+  pop.reserve(size);
+  Point first;
+  first.v = box.clamp(start.v);
+  first.percent = obj.percent(first.v);
+  pop.push_back(first);
+  int used = 1;
+  while (pop.size() < size && used < evaluations) {
+    Point p;
+    p.v.resize(n);
+    for (std::size_t i = 0; i < n; ++i)
+      p.v[i] = box.lower[i] + unit(gen) * (box.upper[i] - box.lower[i]);
+    p.percent = obj.percent(p.v);
+    ++used;
+    pop.push_back(std::move(p));
+  }
+  const std::size_t m = pop.size();
+  auto inside = [&](const std::vector<double>& v) {
+    for (std::size_t i = 0; i < n; ++i)
+      if (!(v[i] >= box.lower[i] && v[i] <= box.upper[i])) return false;
+    return true;
+  };
+  auto evaluate = [&](const std::vector<double>& v) {
+    if (!inside(v) || used >= evaluations) return kHuge;
+    ++used;
+    const double f = obj.percent(v);
+    return std::isnan(f) ? kHuge : f;
+  };
+  std::uniform_int_distribution<std::size_t> member(0, m - 1);
+  std::vector<std::size_t> pick(n + 1);
+  std::vector<double> trial(n);
+  // Reflections that land outside the box cost no evaluation: the attempts are capped as well.
+  for (long attempt = 0; m > n + 1 && used < evaluations && attempt < 20L * evaluations;
+       ++attempt) {
+    std::size_t best = 0, worst = 0;
+    for (std::size_t j = 1; j < m; ++j) {
+      if (pop[j].percent < pop[best].percent) best = j;
+      if (pop[j].percent > pop[worst].percent) worst = j;
+    }
+    pick[0] = best;
+    for (std::size_t j = 1; j <= n; ++j) {
+      std::size_t c;
+      do {
+        c = member(gen);
+      } while (std::find(pick.begin(), pick.begin() + static_cast<std::ptrdiff_t>(j), c) !=
+               pick.begin() + static_cast<std::ptrdiff_t>(j));
+      pick[j] = c;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      double centroid = 0;
+      for (std::size_t j = 0; j < n; ++j) centroid += pop[pick[j]].v[i];
+      trial[i] = 2.0 * centroid / static_cast<double>(n) - pop[pick[n]].v[i];
+    }
+    double f = evaluate(trial);
+    if (!(f < pop[worst].percent)) {
+      for (std::size_t i = 0; i < n; ++i) {
+        const double w = unit(gen);
+        trial[i] = (1.0 + w) * pop[best].v[i] - w * trial[i];
+      }
+      f = evaluate(trial);
+    }
+    if (f < pop[worst].percent) {
+      pop[worst].v = trial;
+      pop[worst].percent = f;
+    }
+  }
+  return *std::min_element(pop.begin(), pop.end(),
+                           [](const Point& a, const Point& b) { return a.percent < b.percent; });
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -743,18 +825,16 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
   int local_searches = 0;
   lap(result.timings.start);
   if (o.global_stage) {
-    const Point polished =
-        nlopt_run(nlopt::LN_BOBYQA, obj, box, start, o.polish_evaluations, o.seed);
+    const Point polished = bobyqa(obj, box, start, o.polish_evaluations);
     ++local_searches;
     log_start("data-driven+bobyqa", start, polished);
     best = polished;
     const int budget = o.global_evaluations > 0 ? o.global_evaluations : 1500;
-    const Point global = nlopt_run(nlopt::GN_CRS2_LM, obj, box, start, budget, o.seed);
-    const Point global_polished =
-        nlopt_run(nlopt::LN_BOBYQA, obj, box, global, o.polish_evaluations, o.seed);
+    const Point global = controlled_random_search(obj, box, start, budget, o.seed);
+    const Point global_polished = bobyqa(obj, box, global, o.polish_evaluations);
     ++local_searches;
     lap(result.timings.global);
-    log_start("nlopt-crs2+bobyqa", start, global_polished);
+    log_start("crs2-lm+bobyqa", start, global_polished);
     if (global_polished.percent < best.percent) best = global_polished;
   }
 

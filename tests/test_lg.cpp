@@ -215,9 +215,9 @@ TEST(Lg, RoundTripRecoversTheParameters) {
   }
 }
 
-// The global stage draws NLopt's random numbers; each stage seeds them itself right before it runs
-// (src/nlopt_seed.hpp), so identifications on two threads at once give what one gives alone, to
-// the last bit: no stage depends on what another did to a shared generator.
+// The global stage draws its random numbers from a generator of its own (lg.cpp,
+// controlled_random_search), so identifications on two threads at once give what one gives alone,
+// to the last bit: no search depends on what another did to a shared generator.
 TEST(Lg, GlobalStageIsDeterministicOnConcurrentThreads) {
   const Record& r = round_trip().record;
   LgOptions o;

@@ -53,17 +53,19 @@
 //        Fs at the typical presliding speed v_p (median |v| over the samples before g reaches
 //        95 % of S), sigma1 = 0.1 Fs / v_p.  The global stage searches 4.5 decades around it.
 //      * mu = 2 (both shapes); z0 for these parameters by `estimate_lugre_initial_state`.
-// 2. Global stage: NLopt's controlled random search with local mutation (GN_CRS2_LM, seeded) over
+// 2. Global stage: a controlled random search with local mutation (CRS2-LM, the algorithm of
+//    NLopt's GN_CRS2_LM with the search's own generator, seeded by LgOptions::seed) over
 //    the box of (log theta, u); the box is derived from the start (sigma0 x/÷ 10, sigma1 1e-3..30x,
 //    sigma2 from 1e-4 Fc / vmax to max(3 sigma2, Fc / vmax), Fc and Fs x/÷ 3, vs from a tenth of
 //    the slowest to ten times the fastest sliding speed, mu in [0.3, 6]).  Its objective is the
 //    free-run RSS/SSS % with the exact step (`LuGre<double>`; a few hundred microseconds per
 //    evaluation for 10,000 samples).  The data-driven start and the CRS2 optimum are each
-//    polished by BOBYQA (derivative-free, same objective, 1500 evaluations); both are logged in
-//    `report.starts`, with `distinct` set when a minimum differs by more than 1 % from every
-//    earlier one.  The polish is cheap where the local stage is not: one CVODES Jacobian costs as
-//    much as ~2000 exact-step evaluations, and with 400 BOBYQA evaluations Ceres still needed 6-11
-//    Jacobians on sigma0 = 1e6 records, with 1500 it needs 1-2 (measured, 6000 samples).
+//    polished by NLopt's BOBYQA (derivative-free, deterministic, same objective, 1500 evaluations);
+//    both are logged in `report.starts`, with `distinct` set when a minimum differs by more than
+//    one percent from every earlier one.  The polish is cheap where the local stage is not: one
+//    CVODES Jacobian costs as much as ~2000 exact-step evaluations, and with 400 BOBYQA
+//    evaluations Ceres still needed 6-11 Jacobians on sigma0 = 1e6 records, with 1500 it needs 1-2
+//    (measured, 6000 samples).
 // 3. Local stage: Ceres Levenberg-Marquardt from the best polished point, on the N residuals
 //    (F - Fhat) / rms(F), with one parameter block of the 7 log-parameters and one for u, both
 //    bounded by the same box.  Residuals come from the exact step (exact for the piecewise-
@@ -125,10 +127,10 @@ inline CvodesOptions lg_default_cvodes() {
 
 struct LgOptions {
   StribeckShape shape = StribeckShape::Rational;
-  bool global_stage = true;       ///< NLopt CRS2 + BOBYQA polish before the local stage
+  bool global_stage = true;       ///< CRS2-LM + BOBYQA polish before the local stage
   int global_evaluations = 0;     ///< CRS2 budget; 0 means 1500
   int polish_evaluations = 1500;  ///< BOBYQA budget per polished point
-  unsigned seed = 1;              ///< NLopt's random seed (results are reproducible)
+  unsigned seed = 1;              ///< seed of the global stage's own generator (reproducible)
   int max_iterations = 50;        ///< Ceres iterations of the local stage
   LgJacobian jacobian = LgJacobian::Cvodes;
   /// CVODES settings for the Jacobian (sensitivities and log_parameters are forced on).
