@@ -10,11 +10,14 @@
 // thresholds are boxed inside [q, L] (displacement resolution, largest travel) as NLR keeps them,
 // because an operator beyond the travel with a large initial deflection acts as a free offset.
 //
-// Solver.  Ceres Levenberg-Marquardt with automatic derivatives through
+// Solver.  Ceres Levenberg-Marquardt with forward-mode derivatives through
 // Extended<MaxwellSlip<Jet>> and simulate_extended (the discrete recursion is piecewise linear in
-// the states, so forward-mode derivatives are exact wherever they exist).  Extension parameters
-// are boxed (extension_parameter_bounds) to their physical domain, e.g. a stribeck_velocity
-// between 1e-6 and 10 times the largest speed in the record.
+// the states, so they are exact wherever they exist), taken from the model's structure: the pieces
+// once with Jets of their own parameters, then each operator alone (extension_fit.cpp,
+// StructuredSlipCost; the same Jacobian as through the whole model, to rounding:
+// extended_slip_jacobian below).  Extension parameters are boxed (extension_parameter_bounds) to
+// their physical domain, e.g. a stribeck_velocity between 1e-6 and 10 times the largest speed in
+// the record.
 #pragma once
 
 #include <span>
