@@ -12,8 +12,8 @@
 #include <cstdio>
 #include <vector>
 
+#include "derivative_records.hpp"
 #include "friction/sample_derivatives.hpp"
-#include "study_design.hpp"
 
 namespace friction::testing {
 namespace {
@@ -62,18 +62,10 @@ void expect_near_best(const truth::Trace& t, const std::string& what) {
   EXPECT_LE(rule.velocity, rms_error(backward, t.velocity)) << what;
 }
 
-truth::StudyRecord study_record(std::uint64_t seed) {
-  truth::RecordSpec spec;
-  spec.id = "derivatives";
-  spec.family = static_cast<truth::Family>(seed % 3);
-  spec.seed = seed * 2654435761u;
-  return truth::make_record(spec);
-}
-
 // Encoders from travel/30 000 to travel/1000, three excitation families, 200 Hz-5 kHz.
 TEST(SampleDerivatives, WithinOneAndAHalfOfTheBestFixedWindowOnEncoderRecords) {
   for (std::uint64_t seed = 5000; seed < 5030; ++seed) {
-    const truth::StudyRecord r = study_record(seed);
+    const truth::StudyRecord r = derivative_record(seed);
     expect_near_best(r.trace_estimation, "estimation: " + r.summary());
     expect_near_best(r.trace_validation, "validation: " + r.summary());
   }
@@ -82,7 +74,7 @@ TEST(SampleDerivatives, WithinOneAndAHalfOfTheBestFixedWindowOnEncoderRecords) {
 // An analog sensor: white displacement noise of travel/100 000 to travel/3000, no quantum.
 TEST(SampleDerivatives, WithinOneAndAHalfOfTheBestFixedWindowOnAnalogRecords) {
   for (std::uint64_t seed = 6000; seed < 6012; ++seed) {
-    const truth::StudyRecord r = study_record(seed);
+    const truth::StudyRecord r = derivative_record(seed);
     truth::Measurement m = r.validation;
     m.quantum = 0;
     m.position_noise = r.travel * std::pow(10.0, -5.0 + 1.5 * static_cast<double>(seed % 4) / 3);

@@ -8,19 +8,11 @@
 #include <cstdio>
 #include <vector>
 
+#include "derivative_records.hpp"
 #include "friction/sample_derivatives.hpp"
-#include "study_design.hpp"
 
 namespace friction::testing {
 namespace {
-
-truth::StudyRecord study_record(std::uint64_t seed) {
-  truth::RecordSpec spec;
-  spec.id = "derivatives";
-  spec.family = static_cast<truth::Family>(seed % 3);
-  spec.seed = seed * 2654435761u;
-  return truth::make_record(spec);
-}
 
 // A term fitted by least squares on an estimated signal: sum(F s_hat) / sum(s_hat^2) for a force
 // F = c s of the exact signal s.  Its relative error is the differentiator's attenuation less its
@@ -45,7 +37,7 @@ double coefficient_bias(const std::vector<double>& exact, const std::vector<doub
 TEST(SampleDerivatives, TermsFittedOnTheRulesSignalsAreNearlyUnbiased) {
   std::vector<double> bias_v, bias_a;
   for (std::uint64_t seed = 5200; seed < 5230; ++seed) {
-    const truth::StudyRecord r = study_record(seed);
+    const truth::StudyRecord r = derivative_record(seed);
     for (const truth::Trace* t : {&r.trace_estimation, &r.trace_validation}) {
       const SampleDerivatives d = sample_derivatives(t->time, t->position);
       bias_v.push_back(std::abs(coefficient_bias(t->velocity, d.velocity)));
