@@ -33,15 +33,6 @@ AnyModel load_model(const std::string& path) {
   }
 }
 
-void emit(const OutputOptions& out, const std::string& text) {
-  if (out.out.empty()) {
-    std::fwrite(text.data(), 1, text.size(), stdout);
-    std::fflush(stdout);
-  } else {
-    write_file_atomically(out.out, text);
-  }
-}
-
 void emit_stream(const OutputOptions& out, const std::function<void(std::ostream&)>& write) {
   if (out.out.empty()) {
     write(std::cout);
@@ -50,6 +41,12 @@ void emit_stream(const OutputOptions& out, const std::function<void(std::ostream
   } else {
     write_file_atomically(out.out, write);
   }
+}
+
+void emit(const OutputOptions& out, const std::string& text) {
+  emit_stream(out, [&](std::ostream& s) {
+    s.write(text.data(), static_cast<std::streamsize>(text.size()));
+  });
 }
 
 void emit_table(const OutputOptions& out, const std::string& table, const Json& document) {
