@@ -14,6 +14,7 @@
 #include "friction/covariance_report.hpp"
 #include "friction/initial_state.hpp"
 #include "friction/simulate.hpp"
+#include "bounded_solver.hpp"
 #include "slip_regression.hpp"
 
 namespace friction {
@@ -272,6 +273,7 @@ Reoptimised reoptimise(const Series& r, const Orders& o, const detail::StickBrea
   so.parameter_tolerance = 1e-10;
   so.num_threads = 1;
   so.logging_type = ceres::SILENT;
+  detail::use_value_only_line_search(so);
   Reoptimised out;
   ceres::Solve(so, &problem, &out.summary);
   out.thr = sb.thresholds(s);

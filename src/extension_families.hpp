@@ -34,6 +34,8 @@
 #include "friction/noise_colour.hpp"
 #include "friction/record.hpp"
 
+#include "bounded_solver.hpp"
+
 namespace friction::extension_detail {
 
 inline double sum_sq(const std::vector<double>& v) {
@@ -417,6 +419,7 @@ FamilyFit fit_family(const Record& r, const Family& family, const std::vector<do
   options.logging_type = ceres::SILENT;
   options.function_tolerance = 1e-7;
   options.parameter_tolerance = 1e-9;
+  detail::use_value_only_line_search(options);
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
   FamilyFit out;

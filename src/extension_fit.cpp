@@ -12,6 +12,8 @@
 #include "friction/initial_state.hpp"
 #include "friction/metrics.hpp"
 
+#include "bounded_solver.hpp"
+
 namespace friction {
 
 // ---------------------------------------------------------------------------------------------
@@ -340,6 +342,7 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   // A relative cost change of 1e-7 is 1e-3 BIC units at N = 1e4: far below any decision here.
   options.function_tolerance = 1e-7;
   options.parameter_tolerance = 1e-9;
+  detail::use_value_only_line_search(options);
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
 

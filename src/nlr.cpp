@@ -13,6 +13,7 @@
 
 #include "friction/covariance_report.hpp"
 #include "friction/initial_state.hpp"
+#include "bounded_solver.hpp"
 #include "slip_regression.hpp"
 
 namespace friction {
@@ -237,6 +238,7 @@ ceres::Solver::Options solver_options(const NlrOptions& o) {
   so.num_threads = 1;
   so.logging_type = ceres::SILENT;
   so.minimizer_progress_to_stdout = false;
+  detail::use_value_only_line_search(so);
   // Non-monotonic steps let LM cross the small ridges of this piecewise-smooth cost: on the
   // ten-operator benchmark record they halved the iterations and reached a lower minimum.
   so.use_nonmonotonic_steps = true;
