@@ -14,8 +14,9 @@
 #      the Release pass runs and which would take most of CI's time under ASan); their programs
 #      are not built there (FRICTION_BUILD_LONG_TESTS=OFF).
 #      FRICTION_SKIP_SANITIZERS=1 skips this pass (CI always runs it).
-#   7. ThreadSanitizer on the concurrency tests (build-tsan/, only the two test programs that hold
-#      them): diagnose's candidates on four threads, LG's global stages on concurrent threads.
+#   7. ThreadSanitizer on the concurrency tests (build-tsan/, only the three test programs that
+#      hold them): diagnose's candidates on four threads, LG's global stages on concurrent
+#      threads, compare's three methods on concurrent threads (test_concurrency).
 #      FRICTION_SKIP_SANITIZERS=1 skips it too.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
@@ -115,10 +116,12 @@ thread_sanitizer_pass() {
       -DFRICTION_BUILD_BENCHMARKS=OFF -DFRICTION_BUILD_LONG_TESTS=OFF
   fi
   say "Building the concurrency tests in $TSAN_BUILD_DIR with $FRICTION_JOBS jobs"
-  cmake --build "$TSAN_BUILD_DIR" --parallel "$FRICTION_JOBS" --target test_diagnose test_lg
+  cmake --build "$TSAN_BUILD_DIR" --parallel "$FRICTION_JOBS" \
+    --target test_diagnose test_lg test_concurrency
   export TSAN_OPTIONS="${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}"
   "$TSAN_BUILD_DIR/tests/test_diagnose" --gtest_filter='Diagnose.TheSameDiagnosisOnOneThreadAndOnSeveral'
   "$TSAN_BUILD_DIR/tests/test_lg" --gtest_filter='Lg.GlobalStageIsDeterministicOnConcurrentThreads'
+  "$TSAN_BUILD_DIR/tests/test_concurrency"
 }
 
 total_start=$SECONDS

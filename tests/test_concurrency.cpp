@@ -1,0 +1,67 @@
+// Fits on concurrent threads give the results they give alone, bit for bit.
+//
+// `compare` runs its methods on concurrent threads and `diagnose` its candidates; nothing in an
+// identification may touch state another one sees (a process-wide random generator, a cache
+// without a lock, a static scratch buffer).  A race of that kind shows as a different result on
+// some runs, or not at all on a quiet machine: so this test is also run under ThreadSanitizer
+// (scripts/run-tests.sh), which reports the race itself.  The diagnosis and LG's global stage
+// have their own tests of the same kind (test_diagnose, test_lg).
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "friction/csv.hpp"
+#include "friction/methods.hpp"
+
+namespace friction {
+namespace {
+
+// Every number of the model and the validation error, printed exactly (%a).
+std::string fingerprint(const IdentifiedModel& m, const Validation& v) {
+  char error[64];
+  std::snprintf(error, sizeof error, "%a", v.errors.rss_sss_percent);
+  return m.model.to_json().dump() + " " + error;
+}
+
+TEST(Concurrency, TheThreeMethodsOnConcurrentThreadsGiveTheirSequentialResults) {
+  const std::filesystem::path data = std::filesystem::path(FRICTION_SOURCE_DIR) / "data";
+  // A third of each record of data/: presliding loops and sliding, short enough for TSan.
+  const Record est = read_record(data / "estimation.csv").slice(0, 3000);
+  const Record val = read_record(data / "validation.csv").slice(0, 3000);
+  const std::array<std::string, 3> types{"lugre", "maxwell-slip", "dnlrx"};
+  const auto run = [&](const std::string& type) {
+    const IdentifiedModel m = identify_model(type, est);
+    return fingerprint(m, validate_model(m.model, val));
+  };
+
+  std::array<std::string, 3> alone, together;
+  for (std::size_t i = 0; i < types.size(); ++i) alone[i] = run(types[i]);
+  {
+    std::vector<std::thread> threads;
+    for (std::size_t i = 0; i < types.size(); ++i)
+      threads.emplace_back([&, i] { together[i] = run(types[i]); });
+    for (auto& t : threads) t.join();
+  }
+  for (std::size_t i = 0; i < types.size(); ++i) {
+    EXPECT_FALSE(alone[i].empty()) << types[i];
+    EXPECT_EQ(together[i], alone[i]) << types[i];
+  }
+  // Two fits of the same method at once share every static of its code path.
+  std::array<std::string, 2> twins;
+  {
+    std::thread a([&] { twins[0] = run("maxwell-slip"); });
+    std::thread b([&] { twins[1] = run("maxwell-slip"); });
+    a.join();
+    b.join();
+  }
+  EXPECT_EQ(twins[0], alone[1]);
+  EXPECT_EQ(twins[1], alone[1]);
+}
+
+}  // namespace
+}  // namespace friction
