@@ -623,8 +623,13 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
   relocate_weakest();
   if (o.operators > 0) refine_initial_state(d, best, o, false, rep);
 
-  // The global stage, when the starts stalled in different minima.
-  if (o.global_stage && minima.size() > 1 && !(best.percent <= d.floor_percent)) {
+  // The global stage.  At a fixed M it runs whenever the best start is above the noise floor:
+  // starts that agree are no sign of the global minimum (on the strokes bench record both ended
+  // at twice the floor, and the moves halved it).  In the order selection it would run for every
+  // M, so there it runs only when the starts stalled in different minima.
+  const bool fixed_order = o.operators > 0;
+  if (o.global_stage && (fixed_order || minima.size() > 1) &&
+      !(best.percent <= d.floor_percent)) {
     for (int round = 0; round < 3 && !(best.percent <= d.floor_percent); ++round) {
       const double before_round = best.percent;
       threshold_moves(d, best, o, record);

@@ -51,8 +51,10 @@
 //    geometrically between the smallest start of (a) and half the presliding travel;
 //    (c) "warm": the M-1 solution with one threshold inserted in its largest log-gap.
 //  * Global stage: the cost is only piecewise smooth, and one start often ends in a worse local
-//    minimum (methods.md 8).  When the starts end in minima that differ by more than
-//    `stall_tolerance` (relative), the best fit's operators are moved one at a time: each
+//    minimum (methods.md 8).  At a fixed M whenever the best start is above the noise floor,
+//    and in the order selection (where it would run for every M) when the starts end in minima
+//    that differ by more than `stall_tolerance` (relative), the best fit's operators are moved
+//    one at a time: each
 //    threshold is profiled over a log grid of [q, L] (8 points per decade) and over +-20 % of its
 //    value (1 % steps) with the others held and the stiffnesses re-solved, the best move of all
 //    is polished by Ceres, and sweeps repeat while they improve; then a restart from the
