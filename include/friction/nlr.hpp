@@ -51,14 +51,14 @@
 //    geometrically between the smallest start of (a) and half the presliding travel;
 //    (c) "warm": the M-1 solution with one threshold inserted in its largest log-gap.
 //  * Global stage: the cost is only piecewise smooth, and one start often ends in a worse local
-//    minimum (methods.md 8).  At a fixed M whenever the best start is above the noise floor,
-//    and in the order selection (where it would run for every M) when the starts end in minima
-//    that differ by more than `stall_tolerance` (relative), the best fit's operators are moved
-//    one at a time: each threshold is profiled over a log grid of [q, L] (8 points per decade)
-//    and over +-20 % of its value (1 % steps) with the others held and the stiffnesses
-//    re-solved, the best move of all is polished by Ceres, and sweeps repeat while they improve;
-//    then a restart from the initial-state estimate, in up to three rounds while they improve.
-//    Deterministic, no random numbers.  Against the controlled random search it replaced (NLopt GN_CRS2_LM, 500 M
+//    minimum (methods.md 8).  At a fixed M whenever the best start is above the noise floor, and in
+//    the order selection (where it would run for every M) when the starts end in minima that differ
+//    by more than `stall_tolerance` (relative), the best fit's operators are moved one at a time:
+//    each threshold is profiled over a log grid of [q, L] (8 points per decade) and over +-20 % of
+//    its value (1 % steps) with the others held and the stiffnesses re-solved, the best move of all
+//    is polished by Ceres, and sweeps repeat while they improve; then a restart from the
+//    initial-state estimate, in up to three rounds while they improve.  Deterministic, no random
+//    numbers.  Against the controlled random search it replaced (NLopt GN_CRS2_LM, 500 M
 //    evaluations per round): the strokes bench record's minimum 49 % lower, the NLR round-trip
 //    study as good (pooled coverage 299/320 against 298/320) in a third of the time.
 //    Every start, its cost before and after, and whether it found a new distinct minimum are
