@@ -467,15 +467,42 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
   // wasted here (DNLRX selects its own M, and its passes below refine the initial state of the
   // model it returns); at a fixed M it gives the passes a better start.
   nlr.refine_initial_state = opt.operators > 0;
-  const NlrResult base = identify_maxwell_slip(time, x, force, nlr);
+  const std::size_t m_lo = opt.operators > 0 ? opt.operators : 1;
+  const std::size_t m_hi = opt.operators > 0 ? opt.operators : opt.max_operators;
 
   DnlrxResult result;
   IdentificationReport& rep = result.report;
-  rep.starts = base.report.starts;
-  rep.displacement_resolution = base.report.displacement_resolution;
-  rep.largest_travel = base.report.largest_travel;
-  rep.presliding_travel = base.report.presliding_travel;
-  rep.convergence.local_searches = base.report.convergence.local_searches;
+  std::vector<StartLog> nlr_starts;  // NLR's, for the thresholds of every M
+  if (const IdentificationReport* given = opt.nlr_report) {
+    // NLR's run with these options would log exactly the starts of M = m_lo..m_hi that `given`
+    // logged during its order selection (one local search each).
+    for (const StartLog& s : given->starts)
+      if (s.operators >= m_lo && s.operators <= m_hi &&
+          (nlr.refine_initial_state || s.kind != "initial-state"))
+        nlr_starts.push_back(s);
+    bool every_m = true;
+    for (std::size_t m = m_lo; m <= m_hi && every_m; ++m)
+      every_m = std::any_of(nlr_starts.begin(), nlr_starts.end(),
+                            [m](const StartLog& s) { return s.operators == m; });
+    if (every_m) {
+      rep.starts = nlr_starts;
+      rep.displacement_resolution = given->displacement_resolution;
+      rep.largest_travel = given->largest_travel;
+      rep.presliding_travel = given->presliding_travel;
+      rep.convergence.local_searches = static_cast<int>(nlr_starts.size());
+    } else {
+      nlr_starts.clear();
+    }
+  }
+  if (nlr_starts.empty()) {
+    const NlrResult base = identify_maxwell_slip(time, x, force, nlr);
+    nlr_starts = base.report.starts;
+    rep.starts = base.report.starts;
+    rep.displacement_resolution = base.report.displacement_resolution;
+    rep.largest_travel = base.report.largest_travel;
+    rep.presliding_travel = base.report.presliding_travel;
+    rep.convergence.local_searches = base.report.convergence.local_searches;
+  }
 
   const Series r = make_series(x, force);
   const Eigen::Index n = r.y.size();
@@ -489,8 +516,6 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
   const double tol = std::max(opt.rank_tolerance, eta / std::sqrt(static_cast<double>(n)));
   const detail::StickBreaking sb{rep.displacement_resolution, rep.largest_travel};
 
-  const std::size_t m_lo = opt.operators > 0 ? opt.operators : 1;
-  const std::size_t m_hi = opt.operators > 0 ? opt.operators : opt.max_operators;
   const std::size_t n_lo = opt.spring_order >= 0 ? static_cast<std::size_t>(opt.spring_order) : 0;
   const std::size_t n_hi = opt.spring_order >= 0 ? n_lo : opt.max_spring_order;
   const std::size_t x_lo = opt.input_order >= 0 ? static_cast<std::size_t>(opt.input_order) : 0;
@@ -507,7 +532,7 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
   for (std::size_t m = m_lo; m <= m_hi; ++m) {
     // The best local minimum NLR met with m operators.
     const StartLog* src = nullptr;
-    for (const auto& s : base.report.starts)
+    for (const auto& s : nlr_starts)
       if (s.operators == m && (!src || s.final_percent < src->final_percent)) src = &s;
     if (!src) continue;
     std::vector<double> thr = src->final_thresholds;

@@ -73,6 +73,15 @@ struct DnlrxOptions {
   double rank_tolerance = 1e-10;  ///< floor of the data-derived rank tolerance (header comment)
   bool covariance = true;
   NlrOptions nlr;  ///< for the thresholds (its operator counts are overridden)
+  /// The report of identify_maxwell_slip on the same record with the same `nlr` options (its
+  /// refine_initial_state, covariance and max_operators aside; max_operators at least this one's):
+  /// DNLRX then takes its thresholds from that run's starts instead of running NLR's order
+  /// selection again.  The fits of M = 1..max_operators do not depend on the largest M tried or
+  /// on what NLR does after its selection, and the starts of its final initial-state refinement
+  /// are left out where DNLRX's own run would not make them, so the result is the same, bit for
+  /// bit (test_dnlrx_identification).  Ignored (DNLRX runs NLR itself) unless the report holds a
+  /// start for every M tried.  `compare` passes the NLR it identifies anyway.
+  const IdentificationReport* nlr_report = nullptr;
 };
 
 struct DnlrxResult {

@@ -57,6 +57,10 @@ struct MethodOptions {
   /// in a warning.  Set by diagnose and by identification with extensions, whose pieces then
   /// model the inertia; a plain identification fails with the mass in its message.
   bool base_without_dominant_inertia = false;
+  /// DNLRX: the report of identify_model("maxwell-slip") on the same record with these options,
+  /// whose order selection DNLRX then reuses instead of running it again (DnlrxOptions::
+  /// nlr_report; the same result).  `compare` sets it.
+  const IdentificationReport* maxwell_slip_report = nullptr;
 };
 
 /// An identified model and everything the method reports about it.

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <future>
 #include <iostream>
 #include <optional>
 #include <sstream>
@@ -312,14 +313,42 @@ int run_compare(const CompareOptions& o) {
     std::optional<report::MethodFit> fit;
   };
   std::vector<Outcome> outcomes(o.methods.size());
+  // DNLRX takes its thresholds from NLR's order selection.  When both are compared, DNLRX reuses
+  // the NLR identified here (MethodOptions::maxwell_slip_report, the same result) instead of
+  // fitting M = 1..6 again: it waits for NLR's report, which is signalled as soon as NLR's
+  // identification ends, or fails.
+  std::optional<std::size_t> nlr_index;
+  for (std::size_t i = 0; i < o.methods.size() && !nlr_index; ++i)
+    if (method_type(o.methods[i]) == "maxwell-slip") nlr_index = i;
+  std::promise<void> nlr_done;
+  const std::shared_future<void> nlr_ready = nlr_done.get_future().share();
+  std::optional<IdentificationReport> nlr_report;  // written before nlr_done is signalled
+  struct Signal {  // signals once, when it goes (so it cannot be copied)
+    explicit Signal(std::promise<void>& p) : done(p) {}
+    Signal(const Signal&) = delete;
+    Signal& operator=(const Signal&) = delete;
+    ~Signal() { done.set_value(); }
+    std::promise<void>& done;
+  };
   auto run_one = [&](std::size_t i) {
     const std::string type = method_type(o.methods[i]);
     Outcome& out = outcomes[i];
     Json& row = out.row;
     row["method"] = method_name(type);
+    std::optional<Signal> signal;  // NLR's: set on every way out of the identification
+    if (nlr_index && i == *nlr_index) signal.emplace(nlr_done);
+    MethodOptions options = o.method.method();
+    if (type == "dnlrx" && nlr_index) {
+      nlr_ready.wait();
+      if (nlr_report) options.maxwell_slip_report = &*nlr_report;
+    }
     const auto start = std::chrono::steady_clock::now();
     try {
-      IdentifiedModel m = identify_model(type, rs.estimation, o.method.method());
+      IdentifiedModel m = identify_model(type, rs.estimation, options);
+      if (signal) {
+        nlr_report = m.report;
+        signal.reset();
+      }
       const Validation v = validate_model(m.model, rs.validation);
       for (const auto& w : m.report.warnings) out.warnings.push_back(method_name(type) + ": " + w);
       row["model"] = m.model.to_json();
@@ -349,13 +378,14 @@ int run_compare(const CompareOptions& o) {
       names += (names.empty() ? "" : ", ") + method_name(method_type(name));
     progress.update("compare: identifying and validating " + names + " ...");
   }
-  // The costliest method starts first, so that the shortest is what fills the other thread's end:
-  // DNLRX's order selection fits a grid of (M, n, nx) (on data/ 3.0 s, the tribometer 11 s),
-  // NLR's M = 1..8 (2.5 s, 8.8 s), LG one model of 7 parameters (2.0 s, 2.9 s).  In the order
-  // LG, NLR, DNLRX the last one started after LG and ended alone (data/: 5.3-5.6 s wall on two
-  // threads, against 4.5 s of the larger of DNLRX and NLR + LG).
+  // The costliest work starts first, so that the shortest is what fills the other thread's end.
+  // With NLR among the methods: NLR (M = 1..8; on data/ 2.8 s), then LG (one model of 7
+  // parameters, 2.1 s), then DNLRX, whose own work after NLR's selection is the filter orders and
+  // their thresholds (0.7 s); it must come after NLR, which it waits for.  Without NLR, DNLRX
+  // (which then runs NLR's selection itself) before LG.
   const auto cost_rank = [&](std::size_t i) {
     const std::string type = method_type(o.methods[i]);
+    if (nlr_index) return type == "maxwell-slip" ? 0 : type == "dnlrx" ? 2 : 1;
     return type == "dnlrx" ? 0 : type == "maxwell-slip" ? 1 : 2;
   };
   std::vector<std::size_t> schedule(o.methods.size());
