@@ -5,12 +5,14 @@
 // without a lock, a static scratch buffer).  A race of that kind shows as a different result on
 // some runs, or not at all on a quiet machine: so this test is also run under ThreadSanitizer
 // (scripts/run-tests.sh), which reports the race itself.  The diagnosis and LG's global stage
-// have their own tests of the same kind (test_diagnose, test_lg).
+// have their own tests of the same kind (test_diagnose, test_lg).  DNLRX takes NLR's report from
+// the thread that identified NLR, as in compare.
 #include <gtest/gtest.h>
 
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <future>
 #include <string>
 #include <thread>
 #include <vector>
@@ -61,6 +63,28 @@ TEST(Concurrency, TheThreeMethodsOnConcurrentThreadsGiveTheirSequentialResults) 
   }
   EXPECT_EQ(twins[0], alone[1]);
   EXPECT_EQ(twins[1], alone[1]);
+  // As compare runs them: DNLRX on another thread takes NLR's order selection from the report
+  // NLR's thread hands over (MethodOptions::maxwell_slip_report), and ends where it does alone.
+  std::promise<IdentificationReport> handed;
+  std::string nlr_model, dnlrx_model;
+  {
+    std::thread a([&] {
+      const IdentifiedModel m = identify_model("maxwell-slip", est);
+      handed.set_value(m.report);
+      nlr_model = fingerprint(m, validate_model(m.model, val));
+    });
+    std::thread b([&] {
+      const IdentificationReport report = handed.get_future().get();
+      MethodOptions o;
+      o.maxwell_slip_report = &report;
+      const IdentifiedModel m = identify_model("dnlrx", est, o);
+      dnlrx_model = fingerprint(m, validate_model(m.model, val));
+    });
+    a.join();
+    b.join();
+  }
+  EXPECT_EQ(nlr_model, alone[1]);
+  EXPECT_EQ(dnlrx_model, alone[2]);
 }
 
 }  // namespace
