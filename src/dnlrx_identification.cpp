@@ -9,12 +9,14 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "friction/covariance_report.hpp"
 #include "friction/initial_state.hpp"
 #include "friction/simulate.hpp"
 #include "bounded_solver.hpp"
+#include "parallel_for.hpp"
 #include "slip_regression.hpp"
 
 namespace friction {
@@ -526,15 +528,23 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
     std::vector<double> thr;
     LinearFit fit;
   };
-  Candidate best{{1, 0, 0}, {}, {}};
-  double best_bic = std::numeric_limits<double>::infinity();
-  std::size_t best_row = 0;
-  for (std::size_t m = m_lo; m <= m_hi; ++m) {
+  // The operator counts are independent given NLR's thresholds: each M's re-optimisation and its
+  // rows run on their own thread (DnlrxOptions::threads), and are merged below in the order of M,
+  // so the result does not depend on the thread count.
+  struct OperatorCount {
+    std::optional<StartLog> log;  // the re-optimisation's
+    std::vector<SelectionRow> rows;
+    std::vector<Candidate> fits;  // one per row
+  };
+  std::vector<OperatorCount> per_m(m_hi - m_lo + 1);
+  const auto fit_operator_count = [&](std::size_t k) {
+    const std::size_t m = m_lo + k;
+    OperatorCount& out = per_m[k];
     // The best local minimum NLR met with m operators.
     const StartLog* src = nullptr;
     for (const auto& s : nlr_starts)
       if (s.operators == m && (!src || s.final_percent < src->final_percent)) src = &s;
-    if (!src) continue;
+    if (!src) return;
     std::vector<double> thr = src->final_thresholds;
     std::vector<double> init0 = first_initial_state(r, thr);
     if (opt.thresholds == DnlrxThresholds::ReoptimisePerOperatorCount) {
@@ -543,7 +553,6 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
       const Orders o0{m, n_lo, x_lo};
       const LinearFit f0 = fit_linear(r, thr, o0, init0, tol);
       const Reoptimised ro = reoptimise(r, o0, sb, thr, f0.init, tol, opt.nlr.max_iterations);
-      ++rep.convergence.local_searches;
       const LinearFit f1 = fit_linear(r, ro.thr, o0, ro.init, tol);
       StartLog log;
       log.operators = m;
@@ -552,7 +561,7 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
       log.start_percent = 100.0 * f0.rss / sss;
       log.final_percent = 100.0 * f1.rss / sss;
       log.final_thresholds = ro.thr;
-      rep.starts.push_back(log);
+      out.log = std::move(log);
       if (f1.rss < f0.rss) thr = ro.thr, init0 = f1.init;
     }
     for (std::size_t nn = n_lo; nn <= n_hi; ++nn)
@@ -567,13 +576,28 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
         row.rss = fit.rss;
         row.rss_sss_percent = 100.0 * fit.rss / sss;
         row.criterion = bayesian_information_criterion(fit.rss, x.size(), row.parameters);
-        if (row.criterion < best_bic) {
-          best_bic = row.criterion;
-          best_row = rep.selection.size();
-          best = Candidate{o, thr, std::move(fit)};
-        }
-        rep.selection.push_back(row);
+        out.rows.push_back(row);
+        out.fits.push_back(Candidate{o, thr, std::move(fit)});
       }
+  };
+  detail::parallel_for(per_m.size(), opt.threads, fit_operator_count);
+
+  Candidate best{{1, 0, 0}, {}, {}};
+  double best_bic = std::numeric_limits<double>::infinity();
+  std::size_t best_row = 0;
+  for (OperatorCount& c : per_m) {
+    if (c.log) {
+      rep.starts.push_back(std::move(*c.log));
+      ++rep.convergence.local_searches;
+    }
+    for (std::size_t j = 0; j < c.rows.size(); ++j) {
+      if (c.rows[j].criterion < best_bic) {
+        best_bic = c.rows[j].criterion;
+        best_row = rep.selection.size();
+        best = std::move(c.fits[j]);
+      }
+      rep.selection.push_back(c.rows[j]);
+    }
   }
   FRICTION_CHECK_AS(NumericalError, !rep.selection.empty(),
                     "identify_dnlrx: no order could be fitted");

@@ -185,6 +185,7 @@ IdentifiedModel identify_base(const std::string& type, const Record& r, const Me
     d.input_order = o.input_order;
     d.nlr.global_stage = o.global_stage;
     d.nlr_report = o.maxwell_slip_report;
+    d.threads = o.threads;
     DnlrxResult res = identify_dnlrx(r.time, r.displacement, r.force, d);
     Json init = values_json(res.report.initial_deflections, "m");
     return {AnyModel(Extended<Dnlrx<double>>(Dnlrx<double>(res.parameters), none)),

@@ -172,6 +172,7 @@ void expect_same_dnlrx(const DnlrxResult& a, const DnlrxResult& b) {
 // compare identifies NLR (its selection over M = 1..8, then the thorough initial-state refinement
 // of the selected M and the covariance) and hands its report to DNLRX (M = 1..6), which must end
 // exactly where its own NLR run would have taken it: the refinement's starts are not DNLRX's.
+// DNLRX's operator counts run on three threads here, and on one in the last comparison.
 TEST(DnlrxIdentification, ReusingNlrsOrderSelectionGivesTheSameModel) {
   const auto sys = four_operator_system();
   const Record est = with_viscous(
@@ -183,8 +184,9 @@ TEST(DnlrxIdentification, ReusingNlrsOrderSelectionGivesTheSameModel) {
     return identify_maxwell_slip(est.time, est.displacement, est.force, no);
   };
   const auto dnlrx = [&](std::size_t max_operators, std::size_t operators,
-                         const IdentificationReport* given) {
+                         const IdentificationReport* given, unsigned threads = 3) {
     DnlrxOptions o;
+    o.threads = threads;
     o.max_operators = max_operators;
     o.operators = operators;
     o.max_spring_order = 1;
@@ -211,6 +213,8 @@ TEST(DnlrxIdentification, ReusingNlrsOrderSelectionGivesTheSameModel) {
     s.final_thresholds = {1e-6, 2e-6};
     refined.starts.push_back(s);
     expect_same_dnlrx(dnlrx(4, 0, &refined), own);
+    // The operator counts run on concurrent threads: one thread gives the same model.
+    expect_same_dnlrx(dnlrx(4, 0, &n.report, 1), own);
   }
   {
     SCOPED_TRACE("fixed M = 3");

@@ -72,6 +72,9 @@ struct DnlrxOptions {
   DnlrxThresholds thresholds = DnlrxThresholds::ReoptimisePerOperatorCount;
   double rank_tolerance = 1e-10;  ///< floor of the data-derived rank tolerance (header comment)
   bool covariance = true;
+  /// Threads for the operator counts of the order selection (0: one per core); the result is the
+  /// same for any count.
+  unsigned threads = 0;
   NlrOptions nlr;  ///< for the thresholds (its operator counts are overridden)
   /// The report of identify_maxwell_slip on the same record with the same `nlr` options (its
   /// refine_initial_state, covariance and max_operators aside; max_operators at least this one's):

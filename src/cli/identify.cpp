@@ -338,6 +338,7 @@ int run_compare(const CompareOptions& o) {
     std::optional<Signal> signal;  // NLR's: set on every way out of the identification
     if (nlr_index && i == *nlr_index) signal.emplace(nlr_done);
     MethodOptions options = o.method.method();
+    options.threads = o.threads;
     if (type == "dnlrx" && nlr_index) {
       nlr_ready.wait();
       if (nlr_report) options.maxwell_slip_report = &*nlr_report;
@@ -499,8 +500,8 @@ Action register_compare(CLI::App& root) {
   c->add_option("--methods", o->methods, "Methods to compare (default LG,NLR,DNLRX)")
       ->delimiter(',');
   c->add_option("--threads", o->threads,
-                "Methods identified concurrently on this many threads (0: one per core); the "
-                "result does not depend on it");
+                "Methods (and DNLRX's operator counts) identified concurrently on this many "
+                "threads (0: one per core); the result does not depend on it");
   add_method_options(*c, o->method);
   add_input_options(*c, o->input);
   add_output_options(*c, o->output);
