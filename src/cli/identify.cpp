@@ -380,10 +380,11 @@ int run_compare(const CompareOptions& o) {
     progress.update("compare: identifying and validating " + names + " ...");
   }
   // The costliest work starts first, so that the shortest is what fills the other thread's end.
-  // With NLR among the methods: NLR (M = 1..8; on data/ 2.8 s), then LG (one model of 7
-  // parameters, 2.1 s), then DNLRX, whose own work after NLR's selection is the filter orders and
-  // their thresholds (0.7 s); it must come after NLR, which it waits for.  Without NLR, DNLRX
-  // (which then runs NLR's selection itself) before LG.
+  // With NLR among the methods: NLR (M = 1..8; on data/ 2.4-2.6 s with its validation), then LG
+  // (one model of 7 parameters, 2.1 s), then DNLRX, whose own work after NLR's selection is the
+  // filter orders and their thresholds (1.6 s, its operator counts on both cores); it must come
+  // after NLR, which it waits for.  Without NLR, DNLRX (which then runs NLR's selection itself)
+  // before LG.
   const auto cost_rank = [&](std::size_t i) {
     const std::string type = method_type(o.methods[i]);
     if (nlr_index) return type == "maxwell-slip" ? 0 : type == "dnlrx" ? 2 : 1;
