@@ -474,37 +474,34 @@ DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double>
 
   DnlrxResult result;
   IdentificationReport& rep = result.report;
-  std::vector<StartLog> nlr_starts;  // NLR's, for the thresholds of every M
-  if (const IdentificationReport* given = opt.nlr_report) {
-    // NLR's run with these options would log exactly the starts of M = m_lo..m_hi that `given`
-    // logged during its order selection (one local search each).
-    for (const StartLog& s : given->starts)
+  // NLR's starts, for the thresholds of every M: those of the given report's order selection
+  // (NLR's run with these options would log exactly the starts of M = m_lo..m_hi that it logged,
+  // one local search each), or of DNLRX's own NLR run.
+  const IdentificationReport* nlr_rep = opt.nlr_report;
+  std::vector<StartLog> nlr_starts;
+  if (nlr_rep) {
+    for (const StartLog& s : nlr_rep->starts)
       if (s.operators >= m_lo && s.operators <= m_hi &&
           (nlr.refine_initial_state || s.kind != "initial-state"))
         nlr_starts.push_back(s);
-    bool every_m = true;
-    for (std::size_t m = m_lo; m <= m_hi && every_m; ++m)
-      every_m = std::any_of(nlr_starts.begin(), nlr_starts.end(),
-                            [m](const StartLog& s) { return s.operators == m; });
-    if (every_m) {
-      rep.starts = nlr_starts;
-      rep.displacement_resolution = given->displacement_resolution;
-      rep.largest_travel = given->largest_travel;
-      rep.presliding_travel = given->presliding_travel;
-      rep.convergence.local_searches = static_cast<int>(nlr_starts.size());
-    } else {
-      nlr_starts.clear();
-    }
+    for (std::size_t m = m_lo; m <= m_hi && nlr_rep; ++m)
+      if (std::none_of(nlr_starts.begin(), nlr_starts.end(),
+                       [m](const StartLog& s) { return s.operators == m; }))
+        nlr_rep = nullptr;
   }
-  if (nlr_starts.empty()) {
-    const NlrResult base = identify_maxwell_slip(time, x, force, nlr);
-    nlr_starts = base.report.starts;
-    rep.starts = base.report.starts;
-    rep.displacement_resolution = base.report.displacement_resolution;
-    rep.largest_travel = base.report.largest_travel;
-    rep.presliding_travel = base.report.presliding_travel;
-    rep.convergence.local_searches = base.report.convergence.local_searches;
+  std::optional<NlrResult> own;
+  int nlr_searches = static_cast<int>(nlr_starts.size());
+  if (!nlr_rep) {
+    own = identify_maxwell_slip(time, x, force, nlr);
+    nlr_rep = &own->report;
+    nlr_starts = own->report.starts;
+    nlr_searches = own->report.convergence.local_searches;
   }
+  rep.starts = nlr_starts;
+  rep.displacement_resolution = nlr_rep->displacement_resolution;
+  rep.largest_travel = nlr_rep->largest_travel;
+  rep.presliding_travel = nlr_rep->presliding_travel;
+  rep.convergence.local_searches = nlr_searches;
 
   const Series r = make_series(x, force);
   const Eigen::Index n = r.y.size();
