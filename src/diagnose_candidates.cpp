@@ -73,17 +73,24 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
   const auto t_start = std::chrono::steady_clock::now();
   try {
     // The evidence chose the candidate; the profile, not the evidence's regression, starts it.
-    const ProfiledStart p = profile_start(c.est, s.base, s.rho, start, e, c.windows, c.scales);
-    t.result = fit_extended_slip(c.est, p.base, s.rho, p.ext, false, c.options.max_iterations);
+    // The state carried as the same deflections at the first sample (extensions.hpp, Initial
+    // state): the candidate may change the level the record starts with.
+    const double level = first_level(s.base, s.ext, c.est);
+    const ProfiledStart p =
+        profile_start(c.est, s.base, s.rho, level, start, e, c.windows, c.scales);
+    t.result = fit_extended_slip(c.est, p.base,
+                                 carried_state(c.est, s.base, s.ext, s.rho, p.base, p.ext), p.ext,
+                                 false, c.options.max_iterations);
     // A piece accepted on an edge (forward_pass) was fitted without what this candidate adds: its
     // own profile, with the candidate beside it, may find the basin the edge hid (a Stribeck
     // curve alone ran to exponent 5; with the viscous term and the lag its minimum is near 2).
     for (const auto& [edge_effect, name] : s.at_bound) {
       if (edge_effect == e || !s.ext.has(edge_effect)) continue;
       const ProfiledStart q =
-          profile_start(c.est, p.base, s.rho, p.ext, edge_effect, c.windows, c.scales);
-      const ExtendedSlipFit g =
-          fit_extended_slip(c.est, q.base, s.rho, q.ext, false, c.options.max_iterations);
+          profile_start(c.est, p.base, s.rho, level, p.ext, edge_effect, c.windows, c.scales);
+      const ExtendedSlipFit g = fit_extended_slip(
+          c.est, q.base, carried_state(c.est, s.base, s.ext, s.rho, q.base, q.ext), q.ext, false,
+          c.options.max_iterations);
       if (g.ok && (!t.result.ok || g.rss < t.result.rss)) t.result = g;
     }
   } catch (const std::exception& ex) {
@@ -218,7 +225,10 @@ std::vector<State> rebuild_chain(const Context& c, const State& first, const Sta
     const bool last = i + 1 == full.order.size();
     const ExtendedSlipFit f =
         last ? ExtendedSlipFit{full.base, full.rho, full.ext, full.rss, true, full.at_bound}
-             : fit_extended_slip(c.est, full.base, full.rho, sub, false, c.options.max_iterations);
+             : fit_extended_slip(
+                   c.est, full.base,
+                   carried_state(c.est, full.base, full.ext, full.rho, full.base, sub), sub, false,
+                   c.options.max_iterations);
     State st;
     take_fit(st, f, last ? full.validation : extended_validation_percent(f.base, f.ext, c.val));
     st.order.assign(full.order.begin(), full.order.begin() + static_cast<std::ptrdiff_t>(i + 1));
@@ -328,7 +338,9 @@ Chain forward_pass(const Context& c, const State& start, const std::vector<Effec
     State reduced = last;
     const ExtensionParameters<double> without = without_piece(last, edge->first);
     const ExtendedSlipFit f =
-        fit_extended_slip(c.est, last.base, last.rho, without, false, c.options.max_iterations);
+        fit_extended_slip(c.est, last.base,
+                          carried_state(c.est, last.base, last.ext, last.rho, last.base, without),
+                          without, false, c.options.max_iterations);
     if (!f.ok) {
       chain.warnings.push_back("kept " + std::string(effect_name(edge->first)) + " with its " +
                                edge->second +
@@ -365,7 +377,9 @@ Chain backward_pass(const Context& c, Chain chain) {
     const Effect e = full.order[i];
     const ExtensionParameters<double> without = without_piece(full, e);
     const ExtendedSlipFit f =
-        fit_extended_slip(c.est, full.base, full.rho, without, false, c.options.max_iterations);
+        fit_extended_slip(c.est, full.base,
+                          carried_state(c.est, full.base, full.ext, full.rho, full.base, without),
+                          without, false, c.options.max_iterations);
     const double v_without = extended_validation_percent(f.base, f.ext, c.val);
     if (f.ok && f.rss < full.rss) {
       // The model without the piece fits better than the model with it, which nests it: the full
@@ -380,8 +394,9 @@ Chain backward_pass(const Context& c, Chain chain) {
       start.for_each_parameter([&](Effect pe, std::string_view, double& x) {
         if (without.has(pe)) x = reduced[j++];
       });
-      const ExtendedSlipFit g =
-          fit_extended_slip(c.est, f.base, f.rho, start, false, c.options.max_iterations);
+      const ExtendedSlipFit g = fit_extended_slip(
+          c.est, f.base, carried_state(c.est, f.base, f.ext, f.rho, f.base, start), start, false,
+          c.options.max_iterations);
       if (g.ok && g.rss < full.rss) {
         take_fit(full, g, extended_validation_percent(g.base, g.ext, c.val));
         chain.removed = true;  // the chain is recomputed for the refitted model

@@ -79,9 +79,11 @@ void judge_ambiguity(const Context& c, const std::vector<Tried>* round, const St
             });
           });
           const ProfiledStart p =
-              profile_start(c.est, from.base, from.rho, start, in, c.windows, c.scales);
-          ExtendedSlipFit fit =
-              fit_extended_slip(c.est, p.base, from.rho, p.ext, false, c.options.max_iterations);
+              profile_start(c.est, from.base, from.rho, first_level(from.base, from.ext, c.est),
+                            start, in, c.windows, c.scales);
+          ExtendedSlipFit fit = fit_extended_slip(
+              c.est, p.base, carried_state(c.est, from.base, from.ext, from.rho, p.base, p.ext),
+              p.ext, false, c.options.max_iterations);
           if (fit.ok) return fit;
         } catch (const Error&) {
           // The refit failed: the other fit stands.

@@ -167,7 +167,7 @@ class StructuredSlipCost final : public ceres::CostFunction {
     thread_local std::vector<JF> x;
     thread_local std::vector<JO> dx, up, down;
     x.resize(n), dx.resize(n), up.resize(n), down.resize(n);
-    JO a(0);
+    JO a(0), level0(1);
     double* jt = jacobians[0];
     double* jr = jacobians[1];
     try {
@@ -185,6 +185,7 @@ class StructuredSlipCost final : public ceres::CostFunction {
           std::span<const double>(r.normal), &f.windows,
           [&](std::size_t k, const ExtendedMotion<JF>& c, const JF& added) {
             const JF& level = pieces_only.level();
+            if (k == 0) level0 = lift(level);
             dx[k] = lift(c.dx);
             up[k] = lift(level * (JF(1) + af));  // the slip limits of maxwell_slip.hpp's step
             down[k] = lift(level * (JF(1) - af));
@@ -198,6 +199,7 @@ class StructuredSlipCost final : public ceres::CostFunction {
         const JO limit = exp(JO(p[0][m + i], own));
         JO delta = clamp(JO((JO(p[1][i], own + 1) + a) * limit), JO(-(JO(1) - a) * limit),
                          JO((JO(1) + a) * limit));
+        delta *= level0;  // the state is given at level 1 (extensions.hpp: Initial state)
         for (std::size_t k = 0; k < n; ++k) {
           delta = clamp(JO(delta + dx[k]), JO(-down[k] * limit), JO(up[k] * limit));
           const double g = -f.scale * k_i;  // d residual / d delta
@@ -405,14 +407,49 @@ std::vector<double> deflections_from_relative(const MaxwellSlipParameters<double
   return d;
 }
 
+double first_level(const MaxwellSlipParameters<double>& base,
+                   const ExtensionParameters<double>& ext, const Record& r) {
+  if (r.size() == 0 || !(ext.stribeck || ext.position_dependence || ext.drift || ext.normal_load))
+    return 1.0;
+  Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(base), ext, 2);
+  double level = 1.0;
+  for_each_extended_step(model, std::span<const double>(r.time),
+                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
+                         nullptr, [&](std::size_t k, const ExtendedMotion<double>&, double) {
+                           if (k == 0) level = model.level();
+                         });
+  return level;
+}
+
+std::vector<double> carried_state(const Record& r, const MaxwellSlipParameters<double>& from_base,
+                                  const ExtensionParameters<double>& from_ext,
+                                  const std::vector<double>& rho,
+                                  const MaxwellSlipParameters<double>& to_base,
+                                  const ExtensionParameters<double>& to_ext) {
+  const std::size_t m = to_base.size();
+  FRICTION_CHECK(from_base.size() == m && rho.size() == m, "carried_state: ", rho.size(),
+                 " states of ", from_base.size(), " operators for ", m);
+  const double from_level = first_level(from_base, from_ext, r);
+  const double to_level = first_level(to_base, to_ext, r);
+  const double a_from = from_ext.asymmetry ? from_ext.asymmetry->asymmetry : 0.0;
+  const double a_to = to_ext.asymmetry ? to_ext.asymmetry->asymmetry : 0.0;
+  std::vector<double> out(m);
+  for (std::size_t i = 0; i < m; ++i) {
+    const double d = (rho[i] + a_from) * from_level * from_base.threshold[i];
+    out[i] = std::clamp(d / (to_level * to_base.threshold[i]) - a_to, -1.0, 1.0);
+  }
+  return out;
+}
+
 // Initial state estimated from the record for fixed parameters: the plain Maxwell Slip estimate as
 // a start, refined through the extended model.
 std::vector<double> plain_relative_state(const MaxwellSlipParameters<double>& base,
                                          const ExtensionParameters<double>& ext, const Record& r) {
   // The force the plain operators should explain: the added terms and the asymmetry's shift of the
-  // slip limits (a F0 at the level the record starts with, taken as 1) removed.  Left in, an
-  // offset-like part biases every operator's estimated deflection (an asymmetric model scored
-  // 2.7 % worse than the offset model it equals, from its initial state alone).
+  // slip limits (a L0 F0, L0 the level the record starts with) removed.  Left in, an offset-like
+  // part biases every operator's estimated deflection (an asymmetric model scored 2.7 % worse than
+  // the offset model it equals, from its initial state alone).
+  const double level = first_level(base, ext, r);
   std::vector<double> f = r.force;
   if (ext.viscous || ext.offset || ext.inertia || ext.asymmetry) {
     std::vector<double> v(r.size()), a(r.size());
@@ -423,13 +460,17 @@ std::vector<double> plain_relative_state(const MaxwellSlipParameters<double>& ba
       if (ext.viscous) f[k] -= ext.viscous->viscous * v[k];
       if (ext.offset) f[k] -= ext.offset->offset;
       if (ext.inertia) f[k] -= ext.inertia->mass * a[k];
-      if (ext.asymmetry) f[k] -= ext.asymmetry->asymmetry * f0;
+      if (ext.asymmetry) f[k] -= ext.asymmetry->asymmetry * level * f0;
     }
   }
-  const std::vector<double> d = estimate_initial_deflections(base, r.displacement, f);
+  // Operators whose limits are those of the record's start, L0 Delta_i (the relative state is
+  // relative to them: extensions.hpp, Initial state).
+  MaxwellSlipParameters<double> at_start = base;
+  for (double& d : at_start.threshold) d *= level;
+  const std::vector<double> d = estimate_initial_deflections(at_start, r.displacement, f);
   std::vector<double> rho(base.size());
   for (std::size_t i = 0; i < base.size(); ++i)
-    rho[i] = std::clamp(d[i] / base.threshold[i], -1.0, 1.0);
+    rho[i] = std::clamp(d[i] / at_start.threshold[i], -1.0, 1.0);
   return rho;
 }
 

@@ -247,7 +247,11 @@ ExtendedFreeRun free_run_extended(const AnyModel& model, const Record& r) {
           const std::vector<double> s = estimate_family_state(
               r, fam, pieces, plain_relative_state(p, pieces, r), value_of(ext.reference_force()));
           out.simulated = family_run(r, fam, pieces, nullptr, s);
+          // The deflections at the first sample: deflections_from_relative gives them at level 1,
+          // and the model's first step scales them by its level (extensions.hpp, Initial state).
           out.initial = deflections_from_relative(p, s, pieces);
+          const double level = first_level(p, pieces, r);
+          for (double& d : out.initial) d *= level;
         } else if constexpr (std::is_same_v<B, Dnlrx<double>>) {
           const DnlrxFamily fam{p, false};
           const DnlrxFreeRun plain = free_run_dnlrx(p, r.time, r.displacement, r.force);

@@ -33,7 +33,8 @@ struct Columns {
 };
 
 void fill_columns(const Record& r, const std::vector<double>& thresholds,
-                  const std::vector<double>& rho, const ExtensionParameters<double>& ext,
+                  const std::vector<double>& rho, double rho_level,
+                  const ExtensionParameters<double>& ext,
                   const DerivativeWindows& windows, Columns& c) {
   const std::size_t m = thresholds.size(), n = r.size();
   c.viscous = ext.viscous.has_value();
@@ -49,6 +50,10 @@ void fill_columns(const Record& r, const std::vector<double>& thresholds,
   unit.threshold = thresholds;
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(unit), ext, 2);
   model.base().reset(deflections_from_relative(unit, rho, ext), model.asymmetry());
+  // The deflections of the model the state comes from (relative to its first level), whatever
+  // level the profiled piece starts the record with: every grid point starts from the same
+  // operators (extensions.hpp, Initial state).
+  model.set_initial_state_level(rho_level);
   const bool lag = ext.frictional_lag.has_value();
   for_each_extended_step(model, std::span<const double>(r.time),
                          std::span<const double>(r.displacement), std::span<const double>(r.normal),
@@ -102,9 +107,9 @@ ProfileScales profile_scales(const Record& r, const ExtendedSlipRun& run, double
 }
 
 ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>& base,
-                            const std::vector<double>& rho, const ExtensionParameters<double>& ext,
-                            Effect profiled, const DerivativeWindows& windows,
-                            const ProfileScales& scales) {
+                            const std::vector<double>& rho, double rho_level,
+                            const ExtensionParameters<double>& ext, Effect profiled,
+                            const DerivativeWindows& windows, const ProfileScales& scales) {
   FRICTION_CHECK(r.has_force() && r.size() >= 3, "profile_start: the record needs force");
   ExtensionParameters<double> point = ext;
   if (!(point.reference_force > 0)) point.reference_force = base.sliding_force();
@@ -130,7 +135,7 @@ ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>
       });
     try {
       point.validate();
-      fill_columns(r, base.threshold, rho, point, windows, c);
+      fill_columns(r, base.threshold, rho, rho_level, point, windows, c);
       const Eigen::VectorXd z = detail::box_least_squares(c.a, f, c.lo, c.hi, nullptr, &storage);
       const double rss = (f - c.a * z).squaredNorm();
       ++best.points;

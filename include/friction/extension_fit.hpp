@@ -82,8 +82,10 @@ ProfileScales profile_scales(const Record& r, const ExtendedSlipRun& run, double
 /// Where a fit starts (effect_table.hpp, Profiles): the best point of the grid of `profiled`'s
 /// nonlinear parameters, with the stiffnesses and every added term of `ext` (viscous, offset,
 /// mass) solved by bounded least squares at each point (k, viscous, mass >= 0), the thresholds and
-/// the relative initial deflections `rho` held.  A normal-load piece is set to its derived mu.
-/// Without axes (an added term) it is the projection alone.
+/// the initial deflections held: `rho`, relative to the slip limits at `rho_level` (the first level
+/// of the model it comes from; extensions.hpp, Initial state), so that every grid point starts from
+/// that model's operators.  A normal-load piece is set to its derived mu.  Without axes (an added
+/// term) it is the projection alone.
 struct ProfiledStart {
   MaxwellSlipParameters<double> base;  ///< stiffnesses solved, thresholds as given
   ExtensionParameters<double> ext;     ///< the best point, added terms solved
@@ -91,9 +93,9 @@ struct ProfiledStart {
   std::size_t points = 0;              ///< grid points evaluated
 };
 ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>& base,
-                            const std::vector<double>& rho, const ExtensionParameters<double>& ext,
-                            Effect profiled, const DerivativeWindows& windows,
-                            const ProfileScales& scales);
+                            const std::vector<double>& rho, double rho_level,
+                            const ExtensionParameters<double>& ext, Effect profiled,
+                            const DerivativeWindows& windows, const ProfileScales& scales);
 
 /// Box of one extension parameter during a fit (f0 the reference force, duration of the record,
 /// vmax its largest speed).
@@ -160,10 +162,27 @@ struct ExtendedSlipReport {
 ExtendedSlipReport report_extended_slip(const Record& r, const ExtendedSlipFit& fit);
 
 /// delta_i(0) = (rho_i + a) Delta_i: rho_i in [-1, 1] relative to the centre a Delta_i of operator
-/// i's box, a the asymmetry of `ext` (0 without one; extensions.hpp).
+/// i's box, a the asymmetry of `ext` (0 without one; extensions.hpp).  These are deflections at
+/// level 1: the model's first step scales them by its level (extensions.hpp, Initial state), so
+/// the deflections at the record's first sample are first_level times these.
 std::vector<double> deflections_from_relative(const MaxwellSlipParameters<double>& base,
                                               const std::vector<double>& rho,
                                               const ExtensionParameters<double>& ext);
+
+/// The level an extended Maxwell Slip model hands its base at the record's first sample (1 without
+/// a level piece): the factor its initial state is scaled by (extensions.hpp, Initial state).
+double first_level(const MaxwellSlipParameters<double>& base,
+                   const ExtensionParameters<double>& ext, const Record& r);
+
+/// The state `rho` of a model (from_base, from_ext) as the relative state of another model on the
+/// same operators (to_base, to_ext): the same deflections at the record's first sample, clamped to
+/// the new model's limits there.  A fit that adds or changes a level piece starts from the
+/// operators of the model it comes from, not from ones stretched by the new first level.
+std::vector<double> carried_state(const Record& r, const MaxwellSlipParameters<double>& from_base,
+                                  const ExtensionParameters<double>& from_ext,
+                                  const std::vector<double>& rho,
+                                  const MaxwellSlipParameters<double>& to_base,
+                                  const ExtensionParameters<double>& to_ext);
 
 /// The plain Maxwell Slip estimate of the relative initial state (initial_state.hpp) on the force
 /// without the pieces' added terms and the asymmetry's shift: the start of every refinement.

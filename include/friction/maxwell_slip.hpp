@@ -97,6 +97,12 @@ class MaxwellSlip {
                              T((T(1) + asymmetry) * p_.threshold[i]));
   }
 
+  /// Multiplies every deflection by `level`: a state given at level 1 carried to the slip limits
+  /// level * Delta_i (Extended does it at its first step; extensions.hpp, Initial state).
+  void scale_state(const T& level) noexcept {
+    for (auto& d : deflection_) d *= level;
+  }
+
   /// Current deflections delta_i [m].
   std::span<const T> deflections() const noexcept { return deflection_; }
 
