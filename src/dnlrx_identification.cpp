@@ -16,6 +16,7 @@
 #include "friction/initial_state.hpp"
 #include "friction/simulate.hpp"
 #include "bounded_solver.hpp"
+#include "compressed_cost.hpp"
 #include "parallel_for.hpp"
 #include "slip_regression.hpp"
 
@@ -260,7 +261,8 @@ Reoptimised reoptimise(const Series& r, const Orders& o, const detail::StickBrea
   std::vector<double> s = sb.coordinates(thr0), rho(o.m);
   for (std::size_t i = 0; i < o.m; ++i) rho[i] = std::clamp(init0[i] / thr0[i], -1.0, 1.0);
   ceres::Problem problem;
-  problem.AddResidualBlock(new DnlrxVpCost(r, o, sb, tol), nullptr, s.data(), rho.data());
+  problem.AddResidualBlock(new detail::CompressedCost(new DnlrxVpCost(r, o, sb, tol)), nullptr,
+                           s.data(), rho.data());
   for (int i = 0; i < static_cast<int>(o.m); ++i) {
     problem.SetParameterLowerBound(s.data(), i, 0.0);
     problem.SetParameterUpperBound(s.data(), i, 1.0);

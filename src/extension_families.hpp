@@ -35,6 +35,7 @@
 #include "friction/record.hpp"
 
 #include "bounded_solver.hpp"
+#include "compressed_cost.hpp"
 
 namespace friction::extension_detail {
 
@@ -393,7 +394,7 @@ FamilyFit fit_family(const Record& r, const Family& family, const std::vector<do
   state.resize(family.state_count(), 0.0);
   const std::vector<double> sb = family.state_bounds();
   for (double& s : state) s = std::clamp(s, sb[0], sb[1]);
-  problem.AddResidualBlock(cost, nullptr, theta.data(), state.data());
+  problem.AddResidualBlock(new detail::CompressedCost(cost), nullptr, theta.data(), state.data());
   for (std::size_t i = 0; i < state.size(); ++i) {
     problem.SetParameterLowerBound(state.data(), static_cast<int>(i), sb[0]);
     problem.SetParameterUpperBound(state.data(), static_cast<int>(i), sb[1]);

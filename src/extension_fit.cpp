@@ -13,6 +13,7 @@
 #include "friction/metrics.hpp"
 
 #include "bounded_solver.hpp"
+#include "compressed_cost.hpp"
 
 namespace friction {
 
@@ -285,7 +286,7 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   auto* cost = new StructuredSlipCost(new ExtendedCost{
       &r, m, ext0, rms > 0 ? 1.0 / rms : 1.0, record_derivative_windows(r.time, r.displacement)});
   ceres::Problem problem;
-  problem.AddResidualBlock(cost, nullptr, theta.data(), rho.data());
+  problem.AddResidualBlock(new detail::CompressedCost(cost), nullptr, theta.data(), rho.data());
   for (std::size_t i = 0; i < m; ++i) {
     problem.SetParameterLowerBound(rho.data(), static_cast<int>(i), -1.0);
     problem.SetParameterUpperBound(rho.data(), static_cast<int>(i), 1.0);

@@ -9,11 +9,13 @@
 #include <cstdlib>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <sstream>
 
 #include "friction/covariance_report.hpp"
 #include "friction/initial_state.hpp"
 #include "bounded_solver.hpp"
+#include "compressed_cost.hpp"
 #include "slip_regression.hpp"
 
 namespace friction {
@@ -27,6 +29,7 @@ struct Data {
   // RSS/SSS [%] below which a fit is at the noise floor: N sigma^2 plus three standard errors of
   // that chi-square (sqrt(2N) sigma^2), sigma from estimate_white_noise_sigma.  0: unknown.
   double floor_percent = 0;
+  double sigma2 = 0;  // variance of that noise in units of the scaled force; 0: unknown
   detail::StickBreaking sb{1, 2};
 };
 
@@ -50,40 +53,21 @@ struct Workspace {
   // Jacobian at that same point: with the trajectories' sensitivities computed eagerly (they cost
   // little more than the trajectories) the later requests only assemble what is missing.
   std::vector<double> point;
-  bool has_sensitivities = false, has_jacobian = false;
+  bool has_sensitivities = false, has_jacobian = false, has_factor = false;
   bool eager = false;
+  // The compressed Jacobian (compressed_jacobian): its factor and the small matrices and row blocks
+  // it is built from.
+  Eigen::MatrixXd factor, gram_aug, gram_phi, cross_t, cross_i, coupling, block_in, block_j;
 };
 
-// Projected residual and, optionally (ws.jac), its exact Jacobian w.r.t. (s, rho).
-const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<const double> rho,
-                           bool with_jacobian, Workspace& ws) {
-  const std::size_t m = s.size();
-  const Eigen::Index mi = static_cast<Eigen::Index>(m);
-  const std::vector<double> thr = d.sb.thresholds(s);
-  auto& traj = ws.traj;
-  VpValue& v = ws.v;
-  const bool same_point =
-      ws.point.size() == 2 * m && std::equal(s.begin(), s.end(), ws.point.begin()) &&
-      std::equal(rho.begin(), rho.end(), ws.point.begin() + static_cast<std::ptrdiff_t>(m));
-  if (!same_point || (with_jacobian && !ws.has_sensitivities)) {
-    std::vector<double> init(m);
-    for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
-    const bool sensitivities = with_jacobian || ws.eager;
-    detail::operator_trajectories(thr, init, d.x, sensitivities, traj);
-    const Eigen::VectorXd lo = Eigen::VectorXd::Zero(mi);
-    const Eigen::VectorXd hi =
-        Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity());
-    v.k = detail::box_least_squares(traj.delta, d.y, lo, hi, &v.at_bound, &ws.nnls);
-    v.r = d.y;
-    v.r.noalias() -= traj.delta * v.k;
-    ws.point.assign(s.begin(), s.end());
-    ws.point.insert(ws.point.end(), rho.begin(), rho.end());
-    ws.has_sensitivities = sensitivities;
-    ws.has_jacobian = false;
-  }
-  if (!with_jacobian || ws.has_jacobian) return v;
-  ws.has_jacobian = true;
-  const Eigen::Index n = traj.delta.rows();
+enum class Jacobian { none, full, compressed };
+
+// The Golub-Pereyra Jacobian of the projected residual w.r.t. (s, rho), N x 2M, into ws.jac.
+void full_jacobian(const Data& d, std::span<const double> s, std::span<const double> rho,
+                   const std::vector<double>& thr, Workspace& ws) {
+  const auto& traj = ws.traj;
+  const VpValue& v = ws.v;
+  const Eigen::Index n = traj.delta.rows(), mi = traj.delta.cols();
   ws.jd.setZero(n, mi);
   ws.jr.setZero(n, mi);
   std::vector<Eigen::Index> free;
@@ -123,6 +107,153 @@ const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<c
   ws.jac.resize(n, 2 * mi);
   ws.jac.leftCols(mi).noalias() = ws.jd * d.sb.jacobian(s);
   ws.jac.rightCols(mi) = ws.jr;
+}
+
+// The compressed Jacobian: F ((2M+1) x (2M+1)) with F^T F = [J r]^T [J r], J the Jacobian of
+// full_jacobian, which stands for J and r in the solver's problem (VpCost; compressed_cost.hpp
+// says why Levenberg-Marquardt takes the same steps on it).
+//
+// J is built in row blocks and never stored whole.  With Phi_f the trajectories of the free
+// operators (stiffness not at its bound 0), A the derivatives of Phi_f k along each parameter and
+// W their products with r before the stiffness factor (the second Golub-Pereyra term), the
+// projected derivative is
+//     dr = Phi_f C - A,   C = (Phi_f^T Phi_f)^-1 (Phi_f^T A - W),
+// and C needs only M x M products over the record.  A block of rows of J = dr T (T: the
+// stick-breaking chain rule, and the free operators' columns put in place) is then the same rows
+// of Phi times C T (M x 2M) less those of A through T; every entry carries the rounding of the
+// difference Phi_f C - A, as the full Jacobian's do, and only the Gram matrix of [J r] is
+// accumulated.
+// When Phi_f^T Phi_f is ill-conditioned (the Projector's rule: reciprocal condition of its
+// unit-diagonal scaling at most 1e-10) the full Jacobian, through the rank-revealing QR, is
+// formed instead and compressed the same way.
+void compressed_jacobian(const Data& d, std::span<const double> s, std::span<const double> rho,
+                         const std::vector<double>& thr, Workspace& ws) {
+  const auto& traj = ws.traj;
+  const VpValue& v = ws.v;
+  const Eigen::Index n = traj.delta.rows(), mi = traj.delta.cols(), p = 2 * mi;
+  ws.gram_aug.setZero(p + 1, p + 1);
+  std::vector<Eigen::Index> free;
+  for (Eigen::Index i = 0; i < mi; ++i)
+    if (!v.at_bound[static_cast<std::size_t>(i)]) free.push_back(i);
+  const Eigen::Index nf = static_cast<Eigen::Index>(free.size());
+  bool blocked = nf == 0;
+  if (nf == 0) ws.gram_aug(p, p) = v.r.squaredNorm();
+  if (nf > 0) {
+    ws.gram_phi.setZero(mi, mi);
+    ws.gram_phi.selfadjointView<Eigen::Lower>().rankUpdate(traj.delta.transpose());
+    Eigen::MatrixXd g(nf, nf);
+    Eigen::VectorXd sc(nf);
+    for (Eigen::Index a = 0; a < nf; ++a) {
+      const Eigen::Index ia = free[static_cast<std::size_t>(a)];
+      sc(a) = ws.gram_phi(ia, ia) > 0.0 ? std::sqrt(ws.gram_phi(ia, ia)) : 1.0;
+      for (Eigen::Index b = 0; b <= a; ++b)
+        g(a, b) = ws.gram_phi(ia, free[static_cast<std::size_t>(b)]);
+    }
+    for (Eigen::Index a = 0; a < nf; ++a)
+      for (Eigen::Index b = 0; b <= a; ++b) g(a, b) /= sc(a) * sc(b);
+    const Eigen::LLT<Eigen::MatrixXd> llt(g);
+    blocked = llt.info() == Eigen::Success && llt.rcond() > 1e-10;
+    if (blocked) {
+      ws.cross_t.noalias() = traj.delta.transpose() * traj.d_threshold;
+      ws.cross_i.noalias() = traj.delta.transpose() * traj.d_initial;
+      Eigen::MatrixXd c(nf, 2 * nf);  // Phi_f^T A - W, then C
+      for (Eigen::Index f = 0; f < nf; ++f) {
+        const Eigen::Index i = free[static_cast<std::size_t>(f)];
+        const double ki = v.k(i), ri = rho[static_cast<std::size_t>(i)],
+                     di = thr[static_cast<std::size_t>(i)];
+        for (Eigen::Index h = 0; h < nf; ++h) {
+          const Eigen::Index l = free[static_cast<std::size_t>(h)];
+          c(h, f) = ki * (ws.cross_t(l, i) + ri * ws.cross_i(l, i));
+          c(h, nf + f) = ki * di * ws.cross_i(l, i);
+        }
+        const double wi = traj.d_initial.col(i).dot(v.r);
+        c(f, f) -= traj.d_threshold.col(i).dot(v.r) + ri * wi;
+        c(f, nf + f) -= di * wi;
+      }
+      c = sc.cwiseInverse().asDiagonal() * c;
+      llt.solveInPlace(c);
+      c = sc.cwiseInverse().asDiagonal() * c;
+      // J = Phi * coupling - [A_threshold * SBJ, A_initial]: the coupling C T (M x 2M) acts on
+      // every operator's trajectory (rows of operators at their bound are 0), the stick-breaking
+      // chain rule on the threshold derivatives.
+      const Eigen::MatrixXd sbj = d.sb.jacobian(s);
+      ws.coupling.setZero(mi, p);
+      for (Eigen::Index f = 0; f < nf; ++f) {
+        const Eigen::Index i = free[static_cast<std::size_t>(f)];
+        for (Eigen::Index h = 0; h < nf; ++h) {
+          const Eigen::Index l = free[static_cast<std::size_t>(h)];
+          ws.coupling.row(l).head(mi) += c(h, f) * sbj.row(i);
+          ws.coupling(l, mi + i) += c(h, nf + f);
+        }
+      }
+      constexpr Eigen::Index kRows = 256;  // a block of A and of [J r] stays in cache
+      ws.block_in.resize(kRows, 2 * mi);
+      ws.block_j.resize(kRows, p + 1);
+      for (Eigen::Index t0 = 0; t0 < n; t0 += kRows) {
+        const Eigen::Index rows = std::min(kRows, n - t0);
+        auto in = ws.block_in.topRows(rows);
+        for (Eigen::Index i = 0; i < mi; ++i) {
+          const double ki = v.k(i), ri = rho[static_cast<std::size_t>(i)],
+                       di = thr[static_cast<std::size_t>(i)];
+          in.col(i) = ki * (traj.d_threshold.col(i).segment(t0, rows) +
+                            ri * traj.d_initial.col(i).segment(t0, rows));
+          in.col(mi + i) = (ki * di) * traj.d_initial.col(i).segment(t0, rows);
+        }
+        auto jb = ws.block_j.topRows(rows);
+        jb.leftCols(p).noalias() = traj.delta.middleRows(t0, rows) * ws.coupling;
+        jb.leftCols(mi).noalias() -= in.leftCols(mi) * sbj.triangularView<Eigen::Lower>();
+        jb.middleCols(mi, mi) -= in.rightCols(mi);
+        jb.col(p) = v.r.segment(t0, rows);
+        ws.gram_aug.selfadjointView<Eigen::Lower>().rankUpdate(jb.transpose());
+      }
+    }
+  }
+  if (!blocked) {
+    full_jacobian(d, s, rho, thr, ws);
+    ws.gram_aug.topLeftCorner(p, p).selfadjointView<Eigen::Lower>().rankUpdate(ws.jac.transpose());
+    ws.gram_aug.row(p).head(p).noalias() = (ws.jac.transpose() * v.r).transpose();
+    ws.gram_aug(p, p) = v.r.squaredNorm();
+  }
+  detail::normal_factor(ws.gram_aug, ws.factor);
+}
+
+// Projected residual and, on request, its exact Jacobian w.r.t. (s, rho): whole (ws.jac) or
+// compressed (ws.factor).
+const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<const double> rho,
+                           Jacobian form, Workspace& ws) {
+  const std::size_t m = s.size();
+  const Eigen::Index mi = static_cast<Eigen::Index>(m);
+  const std::vector<double> thr = d.sb.thresholds(s);
+  auto& traj = ws.traj;
+  VpValue& v = ws.v;
+  const bool with_jacobian = form != Jacobian::none;
+  const bool same_point =
+      ws.point.size() == 2 * m && std::equal(s.begin(), s.end(), ws.point.begin()) &&
+      std::equal(rho.begin(), rho.end(), ws.point.begin() + static_cast<std::ptrdiff_t>(m));
+  if (!same_point || (with_jacobian && !ws.has_sensitivities)) {
+    std::vector<double> init(m);
+    for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
+    const bool sensitivities = with_jacobian || ws.eager;
+    detail::operator_trajectories(thr, init, d.x, sensitivities, traj);
+    const Eigen::VectorXd lo = Eigen::VectorXd::Zero(mi);
+    const Eigen::VectorXd hi =
+        Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity());
+    v.k = detail::box_least_squares(traj.delta, d.y, lo, hi, &v.at_bound, &ws.nnls);
+    v.r = d.y;
+    v.r.noalias() -= traj.delta * v.k;
+    ws.point.assign(s.begin(), s.end());
+    ws.point.insert(ws.point.end(), rho.begin(), rho.end());
+    ws.has_sensitivities = sensitivities;
+    ws.has_jacobian = ws.has_factor = false;
+  }
+  if (form == Jacobian::full && !ws.has_jacobian) {
+    full_jacobian(d, s, rho, thr, ws);
+    ws.has_jacobian = true;
+  }
+  if (form == Jacobian::compressed && !ws.has_factor) {
+    compressed_jacobian(d, s, rho, thr, ws);
+    ws.has_factor = true;
+  }
   return v;
 }
 
@@ -130,26 +261,36 @@ double percent_of(const Eigen::VectorXd& r) {
   return 100.0 * r.squaredNorm() / static_cast<double>(r.size());
 }
 
+// The variable-projection problem as Ceres sees it: 2M + 1 residuals, the compressed Jacobian of
+// compressed_jacobian (the same Levenberg-Marquardt steps as on the N projected residuals).  A
+// value-only evaluation (the line search's trial points, the candidate's cost) returns the
+// residual's norm in the last entry: the cost is the same, 0.5 ||r||^2.
 class VpCost final : public ceres::CostFunction {
  public:
   VpCost(const Data& d, int m) : d_(d), m_(m) {
     ws_.eager = true;
-    set_num_residuals(static_cast<int>(d.y.size()));
+    set_num_residuals(2 * m + 1);
     mutable_parameter_block_sizes()->push_back(m);
     mutable_parameter_block_sizes()->push_back(m);
   }
   bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
     const std::size_t m = static_cast<std::size_t>(m_);
-    const auto& v = vp_evaluate(d_, {p[0], m}, {p[1], m}, jacobians != nullptr, ws_);
-    Eigen::Map<Eigen::VectorXd>(residuals, v.r.size()) = v.r;
-    if (jacobians) {
-      for (int b = 0; b < 2; ++b)
-        if (jacobians[b]) {
-          Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
-              jacobians[b], ws_.jac.rows(), m_) = ws_.jac.middleCols(b * m_, m_);
-        }
+    const int rows = 2 * m_ + 1;
+    const auto& v = vp_evaluate(d_, {p[0], m}, {p[1], m},
+                                jacobians ? Jacobian::compressed : Jacobian::none, ws_);
+    Eigen::Map<Eigen::VectorXd> res(residuals, rows);
+    if (!jacobians) {
+      res.setZero();
+      res(rows - 1) = v.r.norm();
+      return std::isfinite(res(rows - 1));
     }
-    return true;
+    res = ws_.factor.col(2 * m_);
+    for (int b = 0; b < 2; ++b)
+      if (jacobians[b]) {
+        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+            jacobians[b], rows, m_) = ws_.factor.middleCols(b * m_, m_);
+      }
+    return ws_.factor.allFinite();
   }
 
  private:
@@ -264,38 +405,51 @@ std::vector<double> start_rho(const Data& d, const std::vector<double>& thr) {
   return rho;
 }
 
-// Stops a local search that cannot reach `target` (Ceres cost) within its iteration budget even if
-// it kept the pace of its last `kWindow` iterations: (best cost - target) > (iterations left) x
-// (decrease of the best cost per iteration over the window).  Searches that crawl along a valley
-// of this piecewise-smooth cost (one start on the README's record took all 100 iterations, at
-// 1e-5 relative per iteration, to end 75 % above the minimum another start had reached in 8) are
-// the ones it stops; a search still descending fast, or one that can still end within the
-// stall tolerance of the target, continues.  The extrapolation is linear, which over-estimates
-// what a decelerating search will gain.  Rejected steps count as iterations without progress,
-// which is why the window is not shorter.
+// Stops a local search in two cases, both judged on the pace of its last `kWindow` iterations
+// (decrease of the best cost per iteration over the window; rejected steps count as iterations
+// without progress, which is why the window is not shorter):
+//  * Hopeless: it cannot reach `target` (Ceres cost) within its iteration budget even if it kept
+//    that pace: (best cost - target) > (iterations left) x pace.  Searches that crawl along a
+//    valley of this piecewise-smooth cost (one start on the README's record took all 100
+//    iterations, at 1e-5 relative per iteration, to end 75 % above the minimum another start had
+//    reached in 8) are the ones it stops; a search still descending fast, or one that can still
+//    end within the stall tolerance of the target, continues.  The extrapolation is linear, which
+//    over-estimates what a decelerating search will gain.
+//  * Converged to the noise: at that pace its whole budget of iterations would lower the RSS by
+//    less than one noise variance sigma^2 (`noise_cost`, in cost units: 0.5 sigma^2), i.e. by less
+//    than half a unit of log-likelihood; no parameter can move by a visible part of its standard
+//    error.  LM crawls like this from kink to kink of the cost near a minimum (a polish on the
+//    multisine bench record spent 60 of its 101 iterations gaining 0.2 sigma^2 in all), and
+//    Ceres' relative function tolerance, which knows nothing of the noise, does not stop it.
 class HopelessSearch final : public ceres::IterationCallback {
  public:
   static constexpr std::size_t kWindow = 10;
-  HopelessSearch(double target, int max_iterations)
-      : target_(target), max_iterations_(max_iterations) {}
+  HopelessSearch(double target, double noise_cost, int max_iterations)
+      : target_(target), noise_cost_(noise_cost), max_iterations_(max_iterations) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
     const double best = best_.empty() ? it.cost : std::min(best_.back(), it.cost);
     best_.push_back(best);
     const std::size_t k = best_.size() - 1;
-    if (!std::isfinite(target_) || k < kWindow || best <= target_) return ceres::SOLVER_CONTINUE;
+    if (k < kWindow) return ceres::SOLVER_CONTINUE;
     const double pace = (best_[k - kWindow] - best) / static_cast<double>(kWindow);
+    if (noise_cost_ > 0.0 && pace * static_cast<double>(max_iterations_) < noise_cost_) {
+      converged_ = true;
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
+    if (!std::isfinite(target_) || best <= target_) return ceres::SOLVER_CONTINUE;
     const double left = static_cast<double>(std::max(0, max_iterations_ - static_cast<int>(k)));
     if (best - target_ <= left * pace) return ceres::SOLVER_CONTINUE;
     stopped_ = true;
     return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
   }
   bool stopped() const { return stopped_; }
+  bool converged() const { return converged_; }
 
  private:
-  double target_;
+  double target_, noise_cost_;
   int max_iterations_;
   std::vector<double> best_;
-  bool stopped_ = false;
+  bool stopped_ = false, converged_ = false;
 };
 
 // `target` [RSS/SSS %]: the lowest cost already known to be reachable (HopelessSearch); infinity
@@ -305,36 +459,44 @@ Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, 
   const int m = static_cast<int>(s.size());
   for (double& v : s) v = std::clamp(v, 0.0, 1.0);
   Fit fit;
-  ceres::Problem::Options po;
-  ceres::Problem problem(po);
+  // Owned here so that its cost's workspace (the trajectories with their sensitivities) is freed
+  // before the final evaluation: at N = 10^6 that is 24 M bytes per operator.
+  auto problem = std::make_unique<ceres::Problem>();
   std::vector<double> logk;
   if (o.solver == NlrSolver::VariableProjection) {
-    problem.AddResidualBlock(new VpCost(d, m), nullptr, s.data(), rho.data());
+    problem->AddResidualBlock(new VpCost(d, m), nullptr, s.data(), rho.data());
   } else {
     Workspace ws;
-    const auto& v = vp_evaluate(d, s, rho, false, ws);
+    const auto& v = vp_evaluate(d, s, rho, Jacobian::none, ws);
     const double kmax = std::max(v.k.maxCoeff(), 1e-300);
     for (int i = 0; i < m; ++i) logk.push_back(std::log(std::max(v.k(i), 1e-6 * kmax)));
-    problem.AddResidualBlock(new JointCost(d, m, JointCost::StickBreaking), nullptr, logk.data(),
+    problem->AddResidualBlock(new JointCost(d, m, JointCost::StickBreaking), nullptr, logk.data(),
                              s.data(), rho.data());
   }
   for (int i = 0; i < m; ++i) {
-    problem.SetParameterLowerBound(s.data(), i, 0.0);
-    problem.SetParameterUpperBound(s.data(), i, 1.0);
-    problem.SetParameterLowerBound(rho.data(), i, -1.0);
-    problem.SetParameterUpperBound(rho.data(), i, 1.0);
+    problem->SetParameterLowerBound(s.data(), i, 0.0);
+    problem->SetParameterUpperBound(s.data(), i, 1.0);
+    problem->SetParameterLowerBound(rho.data(), i, -1.0);
+    problem->SetParameterUpperBound(rho.data(), i, 1.0);
   }
   ceres::Solver::Summary summary;
   ceres::Solver::Options so = solver_options(o);
   const double n = static_cast<double>(d.y.size());
-  HopelessSearch hopeless(target * (1.0 + o.stall_tolerance) * n / 200.0, o.max_iterations);
+  HopelessSearch hopeless(target * (1.0 + o.stall_tolerance) * n / 200.0, 0.5 * d.sigma2,
+                          o.max_iterations);
   so.callbacks.push_back(&hopeless);
-  ceres::Solve(so, &problem, &summary);
+  ceres::Solve(so, problem.get(), &summary);
+  problem.reset();
   fit.seconds = summary.total_time_in_seconds;
   fit.start_percent = 100.0 * 2.0 * summary.initial_cost / n;
   fit.converged = summary.termination_type == ceres::CONVERGENCE;
   fit.iterations = static_cast<int>(summary.iterations.size());
   fit.message = summary.message;
+  if (hopeless.converged()) {
+    fit.converged = true;
+    fit.message = "converged: at its pace its remaining iterations would lower the RSS by less "
+                  "than the noise variance";
+  }
   if (hopeless.stopped())
     fit.message = "stopped: at its pace it could not reach the best minimum already found";
   fit.s = s;
@@ -342,7 +504,7 @@ Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, 
   // Report the concentrated cost (for the joint solver too, stiffnesses re-solved by NNLS: the
   // same number the selection compares).
   Workspace ws;
-  const auto& v = vp_evaluate(d, s, rho, false, ws);
+  const auto& v = vp_evaluate(d, s, rho, Jacobian::none, ws);
   fit.k = v.k;
   fit.percent = percent_of(v.r);
   if (o.solver == NlrSolver::Joint) {
@@ -400,7 +562,8 @@ void refine_initial_state(const Data& d, Fit& best, const NlrOptions& o, bool th
     // sigma^2 in these units): a smaller gain cannot move the parameters by a visible part of
     // their standard errors, and the polish costs a local search.
     Workspace ws;
-    const double gain = best.percent - percent_of(vp_evaluate(d, best.s, rho, false, ws).r);
+    const double gain =
+        best.percent - percent_of(vp_evaluate(d, best.s, rho, Jacobian::none, ws).r);
     if (!(gain > 2.0 * d.floor_percent / static_cast<double>(d.y.size()))) return;
     const Fit f = local_search(d, best.s, rho, o, best.percent);
     rep.starts.push_back(start_log(d, thorough ? "initial-state" : "initial-state-quick", thr, f));
@@ -474,7 +637,7 @@ void threshold_moves(
           const double t = thr[i] * (1.0 + 0.01 * step);
           if (t >= d.sb.lo && t <= d.sb.hi) cands.push_back({i, t, best.rho[i]});
         }
-    vp_evaluate(d, best.s, best.rho, false, ws);
+    vp_evaluate(d, best.s, best.rho, Jacobian::none, ws);
     const Eigen::MatrixXd& phi = ws.traj.delta;
     gram.setZero();
     gram.selfadjointView<Eigen::Lower>().rankUpdate(phi.transpose());
@@ -663,7 +826,7 @@ std::vector<double> nlr_coordinates_from_thresholds(std::span<const double> thre
 void nlr_projected_residual(std::span<const double> x, std::span<const double> force, double lower,
                             double upper, std::span<const double> s, std::span<const double> rho,
                             Eigen::VectorXd& residual, Eigen::MatrixXd* jacobian,
-                            Eigen::VectorXd* stiffness) {
+                            Eigen::VectorXd* stiffness, Eigen::MatrixXd* compressed) {
   FRICTION_CHECK(x.size() == force.size() && !x.empty(), "nlr: lengths differ");
   FRICTION_CHECK(s.size() == rho.size() && !s.empty(), "nlr: s and rho sizes differ");
   FRICTION_CHECK(lower > 0.0 && upper > lower,
@@ -677,10 +840,14 @@ void nlr_projected_residual(std::span<const double> x, std::span<const double> f
   d.y = f / d.scale;
   d.sb = detail::StickBreaking{lower, upper};
   Workspace ws;
-  const auto& v = vp_evaluate(d, s, rho, jacobian != nullptr, ws);
+  const auto& v = vp_evaluate(d, s, rho, jacobian ? Jacobian::full : Jacobian::none, ws);
   residual = v.r;
   if (jacobian) *jacobian = ws.jac;
   if (stiffness) *stiffness = v.k * d.scale;
+  if (compressed) {
+    vp_evaluate(d, s, rho, Jacobian::compressed, ws);
+    *compressed = ws.factor;
+  }
 }
 
 NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const double> x,
@@ -720,6 +887,7 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
   {
     const double sigma = estimate_white_noise_sigma(force) / d.scale;
     d.floor_percent = 100.0 * sigma * sigma * (1.0 + 3.0 * std::sqrt(2.0 / n));
+    d.sigma2 = sigma * sigma;
   }
 
   const std::size_t m_lo = o.operators > 0 ? o.operators : 1;
@@ -816,19 +984,28 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
     // does not depend on how the nuisance is parameterised (rho or delta(0)).
     std::vector<double> init(m);
     for (std::size_t i = 0; i < m; ++i) init[i] = rep.initial_deflections[i];
+    // J (N x 3M) goes in blocks of rows into its triangular factor R: the SVD of R is J's.
     const auto tr = detail::operator_trajectories(p.threshold, init, x, true);
     const Eigen::Index nn = tr.delta.rows();
-    Eigen::MatrixXd jac(nn, 3 * mi);
-    for (Eigen::Index i = 0; i < mi; ++i) {
-      const double ki = p.stiffness[static_cast<std::size_t>(i)] / d.scale;
-      const double di = p.threshold[static_cast<std::size_t>(i)];
-      const double ri = init[static_cast<std::size_t>(i)] / di;
-      jac.col(i) = ki * tr.delta.col(i);
-      jac.col(mi + i) = ki * di * (tr.d_threshold.col(i) + ri * tr.d_initial.col(i));
-      jac.col(2 * mi + i) = ki * di * tr.d_initial.col(i);
+    detail::RowCompressor compressor(3 * mi);
+    constexpr Eigen::Index kRows = 1024;
+    Eigen::MatrixXd block(kRows, 3 * mi);
+    for (Eigen::Index t0 = 0; t0 < nn; t0 += kRows) {
+      const Eigen::Index rows = std::min(kRows, nn - t0);
+      for (Eigen::Index i = 0; i < mi; ++i) {
+        const double ki = p.stiffness[static_cast<std::size_t>(i)] / d.scale;
+        const double di = p.threshold[static_cast<std::size_t>(i)];
+        const double ri = init[static_cast<std::size_t>(i)] / di;
+        block.col(i).head(rows) = ki * tr.delta.col(i).segment(t0, rows);
+        block.col(mi + i).head(rows) = ki * di *
+                                       (tr.d_threshold.col(i).segment(t0, rows) +
+                                        ri * tr.d_initial.col(i).segment(t0, rows));
+        block.col(2 * mi + i).head(rows) = ki * di * tr.d_initial.col(i).segment(t0, rows);
+      }
+      compressor.add(block.topRows(rows));
     }
     Eigen::MatrixXd c;
-    const bool ok = detail::marginal_covariance(jac, 2 * mi, c, 1e-7);
+    const bool ok = detail::marginal_covariance(compressor.factor(), 2 * mi, c, 1e-7);
     const double dof = std::max(1.0, n - 3.0 * static_cast<double>(m));
     const double sigma2 = rep.estimation.rss / (d.scale * d.scale) / dof;
     const bool usable = ok && c.allFinite();

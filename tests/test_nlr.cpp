@@ -149,6 +149,45 @@ TEST(Nlr, ProjectedJacobianMatchesFiniteDifferences) {
   }
 }
 
+TEST(Nlr, CompressedJacobianHasTheNormalEquationsOfTheFullOne) {
+  // The local search hands Ceres F with F^T F = [J r]^T [J r] instead of the N x 2M Jacobian J and
+  // the N residuals r; F is built from row blocks without storing J.  Checked against the full J
+  // at points that take each path: well-conditioned trajectories (blocked), two operators whose
+  // thresholds differ by 1e-9 relative (ill-conditioned: the rank-revealing QR's J, compressed),
+  // and one or two operators whose stiffness goes to its bound 0 (their columns are zero).
+  const auto sys = four_operator_system();
+  const auto rec =
+      synthetic_record(sys, 1500, 30e-6, 0, kSigma, 5, {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr);
+  const double lo = displacement_resolution(rec.displacement);
+  const double hi = largest_travel(rec.displacement);
+  const std::vector<std::vector<double>> points{{1.3e-6, 2.5e-6, 8e-6, 13e-6},
+                                                {1.3e-6, 4e-6, 4e-6 * (1 + 1e-9), 13e-6},
+                                                {1e-6, 3e-6, 3.1e-6, 13e-6},
+                                                {0.5e-6, 0.55e-6, 2e-6, 13e-6}};
+  int bound = 0;
+  for (const auto& thr : points) {
+    const std::vector<double> s = nlr_coordinates_from_thresholds(thr, lo, hi);
+    const std::vector<double> rho{0.3, -0.4, 0.2, -0.5};
+    Eigen::VectorXd r;
+    Eigen::MatrixXd jac, factor;
+    Eigen::VectorXd k;
+    nlr_projected_residual(rec.displacement, rec.force, lo, hi, s, rho, r, &jac, &k, &factor);
+    ASSERT_EQ(factor.rows(), 9);
+    ASSERT_EQ(factor.cols(), 9);
+    Eigen::MatrixXd jr(jac.rows(), 9);
+    jr << jac, r;
+    const Eigen::MatrixXd want = jr.transpose() * jr, got = factor.transpose() * factor;
+    for (Eigen::Index i = 0; i < 9; ++i)
+      for (Eigen::Index j = 0; j < 9; ++j)
+        EXPECT_LE(std::abs(got(i, j) - want(i, j)),
+                  1e-10 * std::sqrt(want(i, i) * want(j, j)) + 1e-300)
+            << "entry (" << i << ", " << j << ") at thresholds " << thr[0] << " " << thr[1] << " "
+            << thr[2] << " " << thr[3];
+    bound += (k.array() == 0.0).count() > 0;
+  }
+  EXPECT_EQ(bound, 2) << "the points meant to put operators at their bound did not";
+}
+
 TEST(Nlr, OperatorTrajectoriesAreTheJetRunOfTheModel) {
   // The hand-written recursion with sensitivities must give, bit for bit, what autodiff through
   // MaxwellSlip<Jet<double, 2>> gives (thresholds seeded (1, 0), initial deflections (0, 1)),

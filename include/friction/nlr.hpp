@@ -130,12 +130,15 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
                                 std::span<const double> force, const NlrOptions& options = {});
 
 /// The projected (concentrated) residual r = (F - Phi k*) / rms(F) and, when `jacobian` is not
-/// null, its exact derivative with respect to (s, rho) (N x 2M, s first), as given to Ceres.
-/// `lower`/`upper` are the threshold bounds q and L.  Exposed for tests; `stiffness` receives k*.
+/// null, its exact derivative J with respect to (s, rho) (N x 2M, s first).  `lower`/`upper` are
+/// the threshold bounds q and L.  Exposed for tests; `stiffness` receives k*; `compressed`
+/// receives what the local search gives Ceres instead of J and r: F ((2M+1) x (2M+1)) with
+/// F^T F = [J r]^T [J r], built without storing J.
 void nlr_projected_residual(std::span<const double> x, std::span<const double> force, double lower,
                             double upper, std::span<const double> s, std::span<const double> rho,
                             Eigen::VectorXd& residual, Eigen::MatrixXd* jacobian,
-                            Eigen::VectorXd* stiffness = nullptr);
+                            Eigen::VectorXd* stiffness = nullptr,
+                            Eigen::MatrixXd* compressed = nullptr);
 
 /// Thresholds [m] for stick-breaking coordinates s in [0,1]^M between `lower` and `upper`.
 std::vector<double> nlr_thresholds_from_coordinates(std::span<const double> s, double lower,

@@ -1,0 +1,120 @@
+// The out-of-line parts of compressed_cost.hpp.
+#include "compressed_cost.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+
+#include <algorithm>
+#include <cmath>
+
+#include "friction/error.hpp"
+
+namespace friction::detail {
+
+void normal_factor(Eigen::MatrixXd& gram, Eigen::MatrixXd& factor) {
+  const Eigen::Index p = gram.rows();
+  Eigen::VectorXd scale(p);
+  for (Eigen::Index j = 0; j < p; ++j) scale(j) = gram(j, j) > 0.0 ? std::sqrt(gram(j, j)) : 1.0;
+  for (Eigen::Index j = 0; j < p; ++j)
+    for (Eigen::Index i = j; i < p; ++i) gram(i, j) /= scale(i) * scale(j);
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(gram);
+  const Eigen::MatrixXd perm = ldlt.transpositionsP() * Eigen::MatrixXd::Identity(p, p);
+  factor.noalias() = ldlt.matrixU() * perm;
+  for (Eigen::Index i = 0; i < p; ++i)
+    factor.row(i) *= std::sqrt(std::max(0.0, ldlt.vectorD()(i)));
+  factor = factor * scale.asDiagonal();
+}
+
+void accumulate_gram(const std::vector<const double*>& blocks, const std::vector<int>& sizes,
+                     const double* residuals, Eigen::Index n, Eigen::MatrixXd& gram) {
+  const Eigen::Index p = gram.rows() - 1;
+  constexpr Eigen::Index kRows = 256;
+  Eigen::MatrixXd rows(kRows, p + 1);
+  for (Eigen::Index t0 = 0; t0 < n; t0 += kRows) {
+    const Eigen::Index b = std::min(kRows, n - t0);
+    Eigen::Index c = 0;
+    for (std::size_t k = 0; k < blocks.size(); ++k) {
+      if (!blocks[k]) continue;
+      const Eigen::Index w = sizes[k];
+      using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+      rows.block(0, c, b, w) = Eigen::Map<const RowMajor>(blocks[k] + t0 * w, b, w);
+      c += w;
+    }
+    rows.block(0, p, b, 1) = Eigen::Map<const Eigen::VectorXd>(residuals + t0, b);
+    gram.selfadjointView<Eigen::Lower>().rankUpdate(rows.topRows(b).transpose());
+  }
+}
+
+RowCompressor::RowCompressor(Eigen::Index cols) : cols_(cols), stack_(0, cols) {}
+
+void RowCompressor::add(const Eigen::Ref<const Eigen::MatrixXd>& rows) {
+  FRICTION_CHECK(rows.cols() == cols_, "RowCompressor: ", rows.cols(), " columns for ", cols_);
+  if (rows.rows() == 0) return;
+  const Eigen::Index top = stack_.rows();
+  stack_.conservativeResize(top + rows.rows(), cols_);
+  stack_.bottomRows(rows.rows()) = rows;
+  {
+    Eigen::HouseholderQR<Eigen::Ref<Eigen::MatrixXd>> qr(stack_);  // in place
+  }
+  stack_.conservativeResize(std::min(stack_.rows(), cols_), cols_);
+  stack_.triangularView<Eigen::StrictlyLower>().setZero();
+}
+
+Eigen::MatrixXd RowCompressor::factor() const {
+  Eigen::MatrixXd r = Eigen::MatrixXd::Zero(cols_, cols_);
+  r.topRows(stack_.rows()) = stack_;
+  return r;
+}
+
+CompressedCost::CompressedCost(ceres::CostFunction* inner) : inner_(inner) {
+  *mutable_parameter_block_sizes() = inner_->parameter_block_sizes();
+  int p = 0;
+  for (int s : inner_->parameter_block_sizes()) p += s;
+  set_num_residuals(p + 1);
+}
+
+bool CompressedCost::Evaluate(double const* const* parameters, double* residuals,
+                              double** jacobians) const {
+  const Eigen::Index n = inner_->num_residuals();
+  const Eigen::Index rows = num_residuals();
+  residuals_.resize(static_cast<std::size_t>(n));
+  Eigen::Map<Eigen::VectorXd> out(residuals, rows);
+  if (!jacobians) {
+    if (!inner_->Evaluate(parameters, residuals_.data(), nullptr)) return false;
+    out.setZero();
+    out(rows - 1) = Eigen::Map<const Eigen::VectorXd>(residuals_.data(), n).norm();
+    return std::isfinite(out(rows - 1));
+  }
+  const auto& sizes = inner_->parameter_block_sizes();
+  jacobians_.resize(sizes.size());
+  std::vector<double*> inner_jacobians(sizes.size(), nullptr);
+  std::vector<const double*> blocks(sizes.size(), nullptr);
+  Eigen::Index p = 0;
+  for (std::size_t b = 0; b < sizes.size(); ++b) {
+    if (!jacobians[b]) continue;
+    jacobians_[b].resize(static_cast<std::size_t>(n * sizes[b]));
+    inner_jacobians[b] = jacobians_[b].data();
+    blocks[b] = jacobians_[b].data();
+    p += sizes[b];
+  }
+  if (!inner_->Evaluate(parameters, residuals_.data(), inner_jacobians.data())) return false;
+  gram_.setZero(p + 1, p + 1);
+  accumulate_gram(blocks, sizes, residuals_.data(), n, gram_);
+  normal_factor(gram_, factor_);
+  if (!factor_.allFinite()) return false;
+  // Rows beyond P + 1 of the requested columns (blocks held constant) are zero.
+  out.setZero();
+  out.head(p + 1) = factor_.col(p);
+  Eigen::Index c = 0;
+  for (std::size_t b = 0; b < sizes.size(); ++b) {
+    if (!jacobians[b]) continue;
+    using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    Eigen::Map<RowMajor> j(jacobians[b], rows, sizes[b]);
+    j.setZero();
+    j.topRows(p + 1) = factor_.middleCols(c, sizes[b]);
+    c += sizes[b];
+  }
+  return true;
+}
+
+}  // namespace friction::detail

@@ -1,0 +1,77 @@
+// A least-squares problem of N residuals handed to Ceres as P + 1 (not installed).
+//
+// Levenberg-Marquardt sees the residuals r (N) and their Jacobian J (N x P) only through
+// J^T J, J^T r and r^T r: the step solves (J^T J + mu D) h = -J^T r, the model's predicted
+// decrease is -h^T J^T r - h^T J^T J h / 2, the Jacobi scaling uses sqrt(diag J^T J), the gradient
+// and the projected gradient of the bounds are J^T r, and the cost is r^T r / 2.  Any F
+// ((P+1) x (P+1)) with F^T F = [J r]^T [J r] therefore stands for them: its first P columns for J,
+// its last column for r, and Ceres takes the same steps on it as on the N-row problem.  What it no
+// longer does per iteration is the O(N P^2) QR of J, the O(N P) copies, products and finiteness
+// checks of N-vectors, and the N x P matrices it keeps.  F comes from the Gram matrix of [J r]
+// (one blocked product, N P^2 / 2 multiply-adds, about a quarter of the QR's) through a pivoted
+// LDL^T: a zero column or a direction lost to rounding gets a pivot of 0, never a failed
+// factorisation.  The Gram matrix squares J's condition number; the unit-diagonal scaling it is
+// factored in removes the column scales, which is what Ceres' Jacobi scaling did to the QR, and
+// directions that the squaring loses (singular values below 1e-8 of the largest after scaling)
+// are the ones Levenberg-Marquardt's damping already dominates.
+//
+// Values without a Jacobian (the line search's trial points, a candidate's cost) are returned as
+// (0, ..., 0, ||r||): the same cost.  Ceres asks for the Jacobian again, with the residuals, at
+// every point it accepts, so the two forms are never mixed within one step.
+#pragma once
+
+#include <ceres/cost_function.h>
+
+#include <Eigen/Core>
+
+#include <memory>
+#include <vector>
+
+namespace friction::detail {
+
+/// F with F^T F = G for a positive semi-definite G given by its lower triangle (overwritten: it is
+/// scaled in place).  F = D^1/2 L^T P S, from the pivoted LDL^T of the unit-diagonal scaling
+/// S^-1 G S^-1 = P^T L D L^T P (negative pivots from rounding clipped to 0).
+void normal_factor(Eigen::MatrixXd& gram, Eigen::MatrixXd& factor);
+
+/// Adds the rows of [J r] to the lower triangle of `gram` ((P+1) x (P+1)), J given as row-major
+/// blocks of columns (null: a block whose Jacobian was not requested, skipped).  Row blocks of
+/// 256 keep the gathered rows in cache.
+void accumulate_gram(const std::vector<const double*>& blocks, const std::vector<int>& sizes,
+                     const double* residuals, Eigen::Index n, Eigen::MatrixXd& gram);
+
+/// The triangular factor R (P x P) of a tall matrix A (N x P) given by blocks of rows, A = Q R:
+/// each block is stacked under the R so far and the stack re-factored (Householder), so R carries
+/// A's singular values and right singular vectors to rounding, with N x P never stored.  What
+/// takes a covariance or a rank decision from an SVD of A can take it from R.
+class RowCompressor {
+ public:
+  explicit RowCompressor(Eigen::Index cols);
+  /// Adds rows (any count, P columns).
+  void add(const Eigen::Ref<const Eigen::MatrixXd>& rows);
+  /// R (upper triangular; rows beyond the number added are zero).
+  Eigen::MatrixXd factor() const;
+
+ private:
+  Eigen::Index cols_;
+  Eigen::MatrixXd stack_;  // R so far (at most P rows)
+};
+
+/// `inner` (N residuals) compressed to P + 1 residuals, P the total size of its parameter blocks.
+/// Evaluate is not re-entrant (it keeps its buffers): one solver thread per problem, as every
+/// fit here runs.
+class CompressedCost final : public ceres::CostFunction {
+ public:
+  explicit CompressedCost(ceres::CostFunction* inner);
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+  const ceres::CostFunction& inner() const { return *inner_; }
+
+ private:
+  std::unique_ptr<ceres::CostFunction> inner_;
+  mutable std::vector<double> residuals_;
+  mutable std::vector<std::vector<double>> jacobians_;
+  mutable Eigen::MatrixXd gram_, factor_;
+};
+
+}  // namespace friction::detail

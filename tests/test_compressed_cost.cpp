@@ -1,0 +1,169 @@
+// The compressed least-squares machinery (src/compressed_cost.hpp): a problem of N residuals
+// handed to Ceres as P + 1 must be solved by the same steps, and the row-block factor must carry
+// the singular values a covariance is computed from.
+#include <gtest/gtest.h>
+
+#include <ceres/ceres.h>
+#include <ceres/dynamic_autodiff_cost_function.h>
+
+#include <Eigen/SVD>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "../src/compressed_cost.hpp"
+
+namespace {
+
+using friction::detail::CompressedCost;
+using friction::detail::normal_factor;
+using friction::detail::RowCompressor;
+
+// Damped oscillation a exp(-b t) cos(w t + phi) + c plus white noise: five parameters, two
+// blocks, not a model of this library.
+struct Oscillation {
+  std::vector<double> t, y;
+  template <class T>
+  bool operator()(T const* const* p, T* r) const {
+    using std::cos;
+    using std::exp;
+    const T* amp_decay = p[0];
+    const T* freq_phase_offset = p[1];
+    for (std::size_t k = 0; k < t.size(); ++k)
+      r[k] = T(y[k]) - (amp_decay[0] * exp(-amp_decay[1] * t[k]) *
+                            cos(freq_phase_offset[0] * t[k] + freq_phase_offset[1]) +
+                        freq_phase_offset[2]);
+    return true;
+  }
+};
+
+Oscillation make_data(unsigned seed, std::size_t n) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  Oscillation o;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double t = 10.0 * static_cast<double>(k) / static_cast<double>(n);
+    o.t.push_back(t);
+    o.y.push_back(2.0 * std::exp(-0.3 * t) * std::cos(3.1 * t + 0.4) + 0.2 + noise(rng));
+  }
+  return o;
+}
+
+ceres::CostFunction* oscillation_cost(const Oscillation& data) {
+  auto* c = new ceres::DynamicAutoDiffCostFunction<Oscillation, 5>(new Oscillation(data));
+  c->AddParameterBlock(2);
+  c->AddParameterBlock(3);
+  c->SetNumResiduals(static_cast<int>(data.t.size()));
+  return c;
+}
+
+struct Solved {
+  std::vector<double> a, b;
+  ceres::Solver::Summary summary;
+};
+
+Solved solve(const Oscillation& data, bool compressed, bool hold_second) {
+  Solved s{{1.5, 0.2}, {3.0, 0.0, 0.0}, {}};
+  ceres::Problem problem;
+  ceres::CostFunction* c = oscillation_cost(data);
+  if (compressed) c = new CompressedCost(c);
+  problem.AddResidualBlock(c, nullptr, s.a.data(), s.b.data());
+  problem.SetParameterLowerBound(s.a.data(), 1, 0.0);  // a bound: the projected line search runs
+  problem.SetParameterUpperBound(s.a.data(), 0, 10.0);
+  if (hold_second) problem.SetParameterBlockConstant(s.b.data());
+  ceres::Solver::Options o;
+  o.linear_solver_type = ceres::DENSE_QR;
+  o.max_num_iterations = 200;
+  o.function_tolerance = 1e-12;
+  o.gradient_tolerance = 1e-14;
+  o.parameter_tolerance = 1e-12;
+  ceres::Solve(o, &problem, &s.summary);
+  return s;
+}
+
+TEST(CompressedCost, CeresTakesTheSameStepsAsOnTheWholeProblem) {
+  for (unsigned seed : {20261125u, 7u}) {
+    const Oscillation data = make_data(seed, 3000);
+    for (bool hold : {false, true}) {
+      const Solved whole = solve(data, false, hold), small = solve(data, true, hold);
+      ASSERT_TRUE(whole.summary.IsSolutionUsable());
+      ASSERT_TRUE(small.summary.IsSolutionUsable());
+      EXPECT_EQ(whole.summary.num_successful_steps, small.summary.num_successful_steps)
+          << "seed " << seed << (hold ? ", second block held" : "");
+      EXPECT_EQ(whole.summary.num_unsuccessful_steps, small.summary.num_unsuccessful_steps);
+      EXPECT_NEAR(whole.summary.initial_cost, small.summary.initial_cost,
+                  1e-12 * whole.summary.initial_cost);
+      EXPECT_NEAR(whole.summary.final_cost, small.summary.final_cost,
+                  1e-10 * whole.summary.final_cost);
+      // The minimum itself, to well inside its standard errors (about 1e-3 here).
+      for (std::size_t j = 0; j < 2; ++j) EXPECT_NEAR(whole.a[j], small.a[j], 1e-8);
+      for (std::size_t j = 0; j < 3; ++j) EXPECT_NEAR(whole.b[j], small.b[j], 1e-8);
+      if (hold) {
+        EXPECT_EQ(small.b, (std::vector<double>{3.0, 0.0, 0.0}));
+      } else {
+        EXPECT_NEAR(small.b[0], 3.1, 0.01);
+      }
+    }
+  }
+}
+
+TEST(CompressedCost, NormalFactorOfASingularGramMatrix) {
+  // A zero column and two columns 1e6 apart in scale: F^T F = G to rounding, no NaN.
+  std::mt19937 rng(11);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Eigen::MatrixXd a(500, 6);
+  for (Eigen::Index i = 0; i < a.rows(); ++i)
+    for (Eigen::Index j = 0; j < a.cols(); ++j) a(i, j) = g(rng);
+  a.col(2).setZero();
+  a.col(4) *= 1e6;
+  a.col(5) = a.col(0) + a.col(1);  // rank 4
+  const Eigen::MatrixXd want = a.transpose() * a;
+  Eigen::MatrixXd gram = want, f;
+  normal_factor(gram, f);
+  ASSERT_TRUE(f.allFinite());
+  const Eigen::MatrixXd got = f.transpose() * f;
+  for (Eigen::Index i = 0; i < 6; ++i)
+    for (Eigen::Index j = 0; j < 6; ++j)
+      EXPECT_LE(std::abs(got(i, j) - want(i, j)),
+                1e-12 * std::sqrt(want(i, i) * want(j, j)) + 1e-300)
+          << i << ", " << j;
+}
+
+TEST(CompressedCost, RowBlocksKeepTheSingularValues) {
+  // Columns 1e-5 to 1e3 in scale and one nearly dependent on another: the factor of uneven row
+  // blocks has A's singular values to backward-stable accuracy (a few eps times the largest),
+  // before and after the unit-norm column scaling marginal_covariance applies.
+  std::mt19937 rng(3);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Eigen::MatrixXd a(2345, 5);
+  for (Eigen::Index i = 0; i < a.rows(); ++i)
+    for (Eigen::Index j = 0; j < a.cols(); ++j) a(i, j) = g(rng) * std::pow(10.0, 3 - 2 * j);
+  a.col(4) += 1e3 * a.col(0);
+  RowCompressor rc(5);
+  for (Eigen::Index t0 = 0, b = 1; t0 < a.rows(); t0 += b, b = b * 3 + 1)
+    rc.add(a.middleRows(t0, std::min(b, a.rows() - t0)));
+  const Eigen::MatrixXd r = rc.factor();
+  EXPECT_TRUE((r.triangularView<Eigen::StrictlyLower>().toDenseMatrix().array() == 0.0).all());
+  const Eigen::VectorXd norms = a.colwise().norm().transpose();
+  for (bool scaled : {false, true}) {
+    const Eigen::VectorXd s =
+        scaled ? Eigen::VectorXd(norms.cwiseInverse()) : Eigen::VectorXd(Eigen::VectorXd::Ones(5));
+    const Eigen::VectorXd want =
+        Eigen::JacobiSVD<Eigen::MatrixXd>(a * s.asDiagonal()).singularValues();
+    const Eigen::VectorXd got =
+        Eigen::JacobiSVD<Eigen::MatrixXd>(r * s.asDiagonal()).singularValues();
+    for (Eigen::Index k = 0; k < 5; ++k)
+      EXPECT_NEAR(got(k), want(k), 1e-14 * want(0))
+          << "singular value " << k << (scaled ? " (columns scaled)" : "");
+  }
+  // Fewer rows than columns so far: the factor is the rows' own, padded with zeros.
+  RowCompressor few(5);
+  few.add(a.topRows(3));
+  const Eigen::MatrixXd rf = few.factor();
+  EXPECT_TRUE(rf.bottomRows(2).isZero(0.0));
+  const Eigen::MatrixXd gram = a.topRows(3).transpose() * a.topRows(3);
+  EXPECT_LE((rf.transpose() * rf - gram).norm(), 1e-12 * gram.norm());
+}
+
+}  // namespace
