@@ -38,7 +38,11 @@
 //    (logged as such); the warm start runs first so that this target exists early.  Without the
 //    stop one start on data/estimation.csv spent all 100 iterations (40 % of the Jacobians of the
 //    whole identification) crawling along a valley to a minimum 75 % above the one the warm start
-//    had reached; the results (table, selected M, parameters) are unchanged by it.
+//    had reached; the results (table, selected M, parameters) are unchanged by it.  A search
+//    also ends, as converged, when at that pace its whole budget would lower the RSS by less than
+//    one noise variance.  Ceres is given the compressed problem (src/compressed_cost.hpp): 2M + 1
+//    residuals F with F^T F = [J r]^T [J r], built from row blocks of J without storing it, on
+//    which Levenberg-Marquardt takes the same steps as on the N projected residuals.
 //  * Cost of an evaluation: NNLS on the compressed P x P problem (the Cholesky factor of the
 //    Gram matrix, formed at matrix-product speed, or a Householder QR when the regressors are
 //    ill-conditioned; then O(M^3) active-set steps), the last point's trajectories, NNLS and projection kept so
@@ -73,7 +77,8 @@
 //  * Uncertainty: marginal covariance of (log k, log Delta) at the optimum with the relative
 //    initial deflections rho as nuisance parameters, scaled by sigma^2 = RSS / (N - 3M); 95 %
 //    intervals are log-normal, value * exp(+-1.96 se_log).  A rank-deficient covariance is a
-//    warning, never a NaN.
+//    warning, never a NaN.  The SVD is taken of the triangular factor of the Jacobian's row
+//    blocks (the same singular values and vectors), so no N x 3M matrix is kept.
 //
 // Variable projection versus joint optimisation of (log k, s, rho), both with the same exact
 // Jacobian machinery (bench_identification, one run each, CPU time on a shared 2-core machine):
