@@ -40,7 +40,7 @@ ExtendedSlipFit fit_step(const Record& r, const ExtendedSlipFit& cur,
   ProfiledStart p{cur.base, start, 0, 0};
   const double level = first_level(cur.base, cur.ext, r);
   for (Effect e : profiled)
-    p = profile_start(r, p.base, cur.rho, level, p.ext, e, pc.windows, pc.scales);
+    p = profile_start(r, p.base, cur.rho, level, p.ext, e, pc.windows, pc.scales, true);
   const Effect e = profiled.front();
   ExtendedSlipFit f =
       fit_extended_slip(r, p.base, carried_state(r, cur.base, cur.ext, cur.rho, p.base, p.ext),

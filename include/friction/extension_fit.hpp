@@ -85,7 +85,9 @@ ProfileScales profile_scales(const Record& r, const ExtendedSlipRun& run, double
 /// the initial deflections held: `rho`, relative to the slip limits at `rho_level` (the first level
 /// of the model it comes from; extensions.hpp, Initial state), so that every grid point starts from
 /// that model's operators.  A normal-load piece is set to its derived mu.  Without axes (an added
-/// term) it is the projection alone.
+/// term) it is the projection alone.  `told`: the piece was asked for (identify --extension), and
+/// a position-dependence piece is also started from a fine linearised scan of its wavelength
+/// (extension_profile.cpp: position_scan), which the diagnosis does not run.
 struct ProfiledStart {
   MaxwellSlipParameters<double> base;  ///< stiffnesses solved, thresholds as given
   ExtensionParameters<double> ext;     ///< the best point, added terms solved
@@ -95,7 +97,8 @@ struct ProfiledStart {
 ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>& base,
                             const std::vector<double>& rho, double rho_level,
                             const ExtensionParameters<double>& ext, Effect profiled,
-                            const DerivativeWindows& windows, const ProfileScales& scales);
+                            const DerivativeWindows& windows, const ProfileScales& scales,
+                            bool told = false);
 
 /// Box of one extension parameter during a fit (f0 the reference force, duration of the record,
 /// vmax its largest speed).
