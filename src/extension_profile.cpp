@@ -270,14 +270,20 @@ ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>
   // mismatch, and a thousand wavelengths more find more of it (on data/, a GMS record without any
   // position effect, the diagnosis with the scan named position-dependence beside its three true
   // effects).
-  if (told && profiled == Effect::position_dependence && point.position_dependence)
-    for (const PositionExtension<double>& pd : position_scan(r, base, rho, rho_level, point,
-                                                             windows, s))
-      evaluate([&] {
-        ExtensionParameters<double> q = point;
-        *q.position_dependence = pd;
-        return q;
-      }());
+  if (told && profiled == Effect::position_dependence && point.position_dependence) {
+    std::vector<PositionExtension<double>> scanned;
+    try {
+      scanned = position_scan(r, base, rho, rho_level, point, windows, s);
+    } catch (const InvalidParameter&) {
+      // The base with the piece at zero amplitude outside another piece's domain: the coarse
+      // grid's points stand alone.
+    }
+    for (const PositionExtension<double>& pd : scanned) {
+      ExtensionParameters<double> q = point;
+      *q.position_dependence = pd;
+      evaluate(q);
+    }
+  }
   FRICTION_CHECK(std::isfinite(best.rss), "profile_start: no grid point of ", effect_name(profiled),
                  " gave a usable model");
   return best;
