@@ -75,12 +75,12 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
     // The evidence chose the candidate; the profile, not the evidence's regression, starts it.
     // The state carried as the same deflections at the first sample (extensions.hpp, Initial
     // state): the candidate may change the level the record starts with.
-    const double level = first_level(s.base, s.ext, c.est);
+    const double level = first_level(s.base, s.ext, c.est, &c.windows);
     const ProfiledStart p =
         profile_start(c.est, s.base, s.rho, level, start, e, c.windows, c.scales);
-    t.result = fit_extended_slip(c.est, p.base,
-                                 carried_state(c.est, s.base, s.ext, s.rho, p.base, p.ext), p.ext,
-                                 false, c.options.max_iterations);
+    t.result = fit_extended_slip(
+        c.est, p.base, carried_state(c.est, s.base, s.ext, s.rho, p.base, p.ext, &c.windows),
+        p.ext, false, c.options.max_iterations);
     // A piece accepted on an edge (forward_pass) was fitted without what this candidate adds: its
     // own profile, with the candidate beside it, may find the basin the edge hid (a Stribeck
     // curve alone ran to exponent 5; with the viscous term and the lag its minimum is near 2).
@@ -89,8 +89,8 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
       const ProfiledStart q =
           profile_start(c.est, p.base, s.rho, level, p.ext, edge_effect, c.windows, c.scales);
       const ExtendedSlipFit g = fit_extended_slip(
-          c.est, q.base, carried_state(c.est, s.base, s.ext, s.rho, q.base, q.ext), q.ext, false,
-          c.options.max_iterations);
+          c.est, q.base, carried_state(c.est, s.base, s.ext, s.rho, q.base, q.ext, &c.windows),
+          q.ext, false, c.options.max_iterations);
       if (g.ok && (!t.result.ok || g.rss < t.result.rss)) t.result = g;
     }
   } catch (const std::exception& ex) {
@@ -227,8 +227,8 @@ std::vector<State> rebuild_chain(const Context& c, const State& first, const Sta
         last ? ExtendedSlipFit{full.base, full.rho, full.ext, full.rss, true, full.at_bound}
              : fit_extended_slip(
                    c.est, full.base,
-                   carried_state(c.est, full.base, full.ext, full.rho, full.base, sub), sub, false,
-                   c.options.max_iterations);
+                   carried_state(c.est, full.base, full.ext, full.rho, full.base, sub, &c.windows),
+                   sub, false, c.options.max_iterations);
     State st;
     take_fit(st, f, last ? full.validation : extended_validation_percent(f.base, f.ext, c.val));
     st.order.assign(full.order.begin(), full.order.begin() + static_cast<std::ptrdiff_t>(i + 1));
@@ -339,7 +339,8 @@ Chain forward_pass(const Context& c, const State& start, const std::vector<Effec
     const ExtensionParameters<double> without = without_piece(last, edge->first);
     const ExtendedSlipFit f =
         fit_extended_slip(c.est, last.base,
-                          carried_state(c.est, last.base, last.ext, last.rho, last.base, without),
+                          carried_state(c.est, last.base, last.ext, last.rho, last.base, without,
+                                        &c.windows),
                           without, false, c.options.max_iterations);
     if (!f.ok) {
       chain.warnings.push_back("kept " + std::string(effect_name(edge->first)) + " with its " +
@@ -378,7 +379,8 @@ Chain backward_pass(const Context& c, Chain chain) {
     const ExtensionParameters<double> without = without_piece(full, e);
     const ExtendedSlipFit f =
         fit_extended_slip(c.est, full.base,
-                          carried_state(c.est, full.base, full.ext, full.rho, full.base, without),
+                          carried_state(c.est, full.base, full.ext, full.rho, full.base, without,
+                                        &c.windows),
                           without, false, c.options.max_iterations);
     const double v_without = extended_validation_percent(f.base, f.ext, c.val);
     if (f.ok && f.rss < full.rss) {
@@ -395,8 +397,8 @@ Chain backward_pass(const Context& c, Chain chain) {
         if (without.has(pe)) x = reduced[j++];
       });
       const ExtendedSlipFit g = fit_extended_slip(
-          c.est, f.base, carried_state(c.est, f.base, f.ext, f.rho, f.base, start), start, false,
-          c.options.max_iterations);
+          c.est, f.base, carried_state(c.est, f.base, f.ext, f.rho, f.base, start, &c.windows),
+          start, false, c.options.max_iterations);
       if (g.ok && g.rss < full.rss) {
         take_fit(full, g, extended_validation_percent(g.base, g.ext, c.val));
         chain.removed = true;  // the chain is recomputed for the refitted model

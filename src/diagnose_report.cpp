@@ -78,11 +78,12 @@ void judge_ambiguity(const Context& c, const std::vector<Tried>* round, const St
               if (pe == se && name == sn) w = v;
             });
           });
-          const ProfiledStart p =
-              profile_start(c.est, from.base, from.rho, first_level(from.base, from.ext, c.est),
-                            start, in, c.windows, c.scales);
+          const ProfiledStart p = profile_start(
+              c.est, from.base, from.rho, first_level(from.base, from.ext, c.est, &c.windows),
+              start, in, c.windows, c.scales);
           ExtendedSlipFit fit = fit_extended_slip(
-              c.est, p.base, carried_state(c.est, from.base, from.ext, from.rho, p.base, p.ext),
+              c.est, p.base,
+              carried_state(c.est, from.base, from.ext, from.rho, p.base, p.ext, &c.windows),
               p.ext, false, c.options.max_iterations);
           if (fit.ok) return fit;
         } catch (const Error&) {

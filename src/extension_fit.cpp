@@ -409,14 +409,15 @@ std::vector<double> deflections_from_relative(const MaxwellSlipParameters<double
 }
 
 double first_level(const MaxwellSlipParameters<double>& base,
-                   const ExtensionParameters<double>& ext, const Record& r) {
+                   const ExtensionParameters<double>& ext, const Record& r,
+                   const DerivativeWindows* windows) {
   if (r.size() == 0 || !(ext.stribeck || ext.position_dependence || ext.drift || ext.normal_load))
     return 1.0;
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(base), ext, 2);
   double level = 1.0;
   for_each_extended_step(model, std::span<const double>(r.time),
                          std::span<const double>(r.displacement), std::span<const double>(r.normal),
-                         nullptr, [&](std::size_t k, const ExtendedMotion<double>&, double) {
+                         windows, [&](std::size_t k, const ExtendedMotion<double>&, double) {
                            if (k == 0) level = model.level();
                          });
   return level;
@@ -426,12 +427,13 @@ std::vector<double> carried_state(const Record& r, const MaxwellSlipParameters<d
                                   const ExtensionParameters<double>& from_ext,
                                   const std::vector<double>& rho,
                                   const MaxwellSlipParameters<double>& to_base,
-                                  const ExtensionParameters<double>& to_ext) {
+                                  const ExtensionParameters<double>& to_ext,
+                                  const DerivativeWindows* windows) {
   const std::size_t m = to_base.size();
   FRICTION_CHECK(from_base.size() == m && rho.size() == m, "carried_state: ", rho.size(),
                  " states of ", from_base.size(), " operators for ", m);
-  const double from_level = first_level(from_base, from_ext, r);
-  const double to_level = first_level(to_base, to_ext, r);
+  const double from_level = first_level(from_base, from_ext, r, windows);
+  const double to_level = first_level(to_base, to_ext, r, windows);
   const double a_from = from_ext.asymmetry ? from_ext.asymmetry->asymmetry : 0.0;
   const double a_to = to_ext.asymmetry ? to_ext.asymmetry->asymmetry : 0.0;
   std::vector<double> out(m);
@@ -450,12 +452,12 @@ std::vector<double> plain_relative_state(const MaxwellSlipParameters<double>& ba
   // slip limits (a L0 F0, L0 the level the record starts with) removed.  Left in, an offset-like
   // part biases every operator's estimated deflection (an asymmetric model scored 2.7 % worse than
   // the offset model it equals, from its initial state alone).
-  const double level = first_level(base, ext, r);
+  const DerivativeWindows windows = record_derivative_windows(r.time, r.displacement);
+  const double level = first_level(base, ext, r, &windows);
   std::vector<double> f = r.force;
   if (ext.viscous || ext.offset || ext.inertia || ext.asymmetry) {
     std::vector<double> v(r.size()), a(r.size());
-    apply_local_derivatives<double>(r.time, r.displacement,
-                                    record_derivative_windows(r.time, r.displacement), v, a);
+    apply_local_derivatives<double>(r.time, r.displacement, windows, v, a);
     const double f0 = ext.reference_force > 0 ? ext.reference_force : base.sliding_force();
     for (std::size_t k = 0; k < r.size(); ++k) {
       if (ext.viscous) f[k] -= ext.viscous->viscous * v[k];

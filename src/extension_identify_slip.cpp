@@ -38,13 +38,13 @@ ExtendedSlipFit fit_step(const Record& r, const ExtendedSlipFit& cur,
                          const std::vector<Effect>& profiled, const ProfileContext& pc,
                          const ExtensionFitOptions& o) {
   ProfiledStart p{cur.base, start, 0, 0};
-  const double level = first_level(cur.base, cur.ext, r);
+  const double level = first_level(cur.base, cur.ext, r, &pc.windows);
   for (Effect e : profiled)
     p = profile_start(r, p.base, cur.rho, level, p.ext, e, pc.windows, pc.scales, true);
   const Effect e = profiled.front();
-  ExtendedSlipFit f =
-      fit_extended_slip(r, p.base, carried_state(r, cur.base, cur.ext, cur.rho, p.base, p.ext),
-                        p.ext, false, o.max_iterations);
+  ExtendedSlipFit f = fit_extended_slip(
+      r, p.base, carried_state(r, cur.base, cur.ext, cur.rho, p.base, p.ext, &pc.windows), p.ext,
+      false, o.max_iterations);
   if (!f.ok)
     throw NumericalError("identify: the fit of the " + std::string(effect_name(e)) +
                          " extension found no usable solution");

@@ -174,8 +174,11 @@ std::vector<double> deflections_from_relative(const MaxwellSlipParameters<double
 
 /// The level an extended Maxwell Slip model hands its base at the record's first sample (1 without
 /// a level piece): the factor its initial state is scaled by (extensions.hpp, Initial state).
+/// `windows`: the record's derivative windows when the caller has them (record_derivative_windows
+/// otherwise chooses them again, most of this function's cost).
 double first_level(const MaxwellSlipParameters<double>& base,
-                   const ExtensionParameters<double>& ext, const Record& r);
+                   const ExtensionParameters<double>& ext, const Record& r,
+                   const DerivativeWindows* windows = nullptr);
 
 /// The state `rho` of a model (from_base, from_ext) as the relative state of another model on the
 /// same operators (to_base, to_ext): the same deflections at the record's first sample, clamped to
@@ -185,7 +188,8 @@ std::vector<double> carried_state(const Record& r, const MaxwellSlipParameters<d
                                   const ExtensionParameters<double>& from_ext,
                                   const std::vector<double>& rho,
                                   const MaxwellSlipParameters<double>& to_base,
-                                  const ExtensionParameters<double>& to_ext);
+                                  const ExtensionParameters<double>& to_ext,
+                                  const DerivativeWindows* windows = nullptr);
 
 /// The plain Maxwell Slip estimate of the relative initial state (initial_state.hpp) on the force
 /// without the pieces' added terms and the asymmetry's shift: the start of every refinement.
