@@ -755,9 +755,7 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
     const bool handed_over = o.operators > 0 && o.global_stage;
     const double target = std::min(best.percent, previous_percent);
     const Fit f = local_search(d, d.sb.coordinates(thr), start_rho(d, thr), o,
-                               std::isfinite(target) ? target
-                               : handed_over         ? d.floor_percent
-                                                     : target);
+                               handed_over && !std::isfinite(target) ? d.floor_percent : target);
     record(kind, thr, f);
   }
   if (o.operators > 0) refine_initial_state(d, best, o, false, rep);

@@ -118,12 +118,23 @@ TEST(Nlr, ConstraintsHold) {
   for (double v : rep.correlation.reshaped()) EXPECT_TRUE(std::isfinite(v));
 }
 
+// The record and threshold bounds (q, L) of the projected-residual tests.
+struct ProjectionCase {
+  Record rec;
+  double lo, hi;
+};
+
+ProjectionCase projection_case() {
+  ProjectionCase c;
+  c.rec = synthetic_record(four_operator_system(), 1500, 30e-6, 0, kSigma, 5,
+                           {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr);
+  c.lo = displacement_resolution(c.rec.displacement);
+  c.hi = largest_travel(c.rec.displacement);
+  return c;
+}
+
 TEST(Nlr, ProjectedJacobianMatchesFiniteDifferences) {
-  const auto sys = four_operator_system();
-  const auto rec =
-      synthetic_record(sys, 1500, 30e-6, 0, kSigma, 5, {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr);
-  const double lo = displacement_resolution(rec.displacement);
-  const double hi = largest_travel(rec.displacement);
+  const auto [rec, lo, hi] = projection_case();
   // A point away from the optimum (large residual, so both Golub-Pereyra terms matter).
   const std::vector<double> start{1.3e-6, 2.5e-6, 8e-6, 13e-6};
   const std::vector<double> s = nlr_coordinates_from_thresholds(start, lo, hi);
@@ -155,11 +166,7 @@ TEST(Nlr, CompressedJacobianHasTheNormalEquationsOfTheFullOne) {
   // at points that take each path: well-conditioned trajectories (blocked), two operators whose
   // thresholds differ by 1e-9 relative (ill-conditioned: the rank-revealing QR's J, compressed),
   // and one or two operators whose stiffness goes to its bound 0 (their columns are zero).
-  const auto sys = four_operator_system();
-  const auto rec =
-      synthetic_record(sys, 1500, 30e-6, 0, kSigma, 5, {0.5e-6, -2e-6, 3e-6, -10e-6}, nullptr);
-  const double lo = displacement_resolution(rec.displacement);
-  const double hi = largest_travel(rec.displacement);
+  const auto [rec, lo, hi] = projection_case();
   const std::vector<std::vector<double>> points{{1.3e-6, 2.5e-6, 8e-6, 13e-6},
                                                 {1.3e-6, 4e-6, 4e-6 * (1 + 1e-9), 13e-6},
                                                 {1e-6, 3e-6, 3.1e-6, 13e-6},
