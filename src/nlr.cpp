@@ -141,18 +141,16 @@ void compressed_jacobian(const Data& d, std::span<const double> s, std::span<con
   if (nf > 0) {
     ws.gram_phi.setZero(mi, mi);
     ws.gram_phi.selfadjointView<Eigen::Lower>().rankUpdate(traj.delta.transpose());
-    Eigen::MatrixXd g(nf, nf);
-    Eigen::VectorXd sc(nf);
-    for (Eigen::Index a = 0; a < nf; ++a) {
-      const Eigen::Index ia = free[static_cast<std::size_t>(a)];
-      sc(a) = ws.gram_phi(ia, ia) > 0.0 ? std::sqrt(ws.gram_phi(ia, ia)) : 1.0;
-      for (Eigen::Index b = 0; b <= a; ++b)
-        g(a, b) = ws.gram_phi(ia, free[static_cast<std::size_t>(b)]);
-    }
+    Eigen::MatrixXd g(nf, nf), unused_r;
     for (Eigen::Index a = 0; a < nf; ++a)
-      for (Eigen::Index b = 0; b <= a; ++b) g(a, b) /= sc(a) * sc(b);
-    const Eigen::LLT<Eigen::MatrixXd> llt(g);
-    blocked = llt.info() == Eigen::Success && llt.rcond() > 1e-10;
+      for (Eigen::Index b = 0; b <= a; ++b)
+        g(a, b) = ws.gram_phi(free[static_cast<std::size_t>(a)], free[static_cast<std::size_t>(b)]);
+    // The unit-diagonal scaling and its Cholesky factor, trusted by the rule the bounded least
+    // squares and the Projector use (compress_by_gram).
+    Eigen::VectorXd sc, unused_b;
+    Eigen::LLT<Eigen::MatrixXd> llt;
+    blocked =
+        detail::compress_by_gram(g, Eigen::VectorXd::Zero(nf), llt, sc, unused_r, unused_b);
     if (blocked) {
       ws.cross_t.noalias() = traj.delta.transpose() * traj.d_threshold;
       ws.cross_i.noalias() = traj.delta.transpose() * traj.d_initial;
