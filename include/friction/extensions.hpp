@@ -631,7 +631,10 @@ void delayed_displacement_into(std::span<const double> time, std::span<const T> 
                                std::vector<T>& xs) {
   const std::size_t n = x.size();
   xs.assign(x.begin(), x.end());
-  if (value_of(delay) == 0.0) return;
+  // A delay of exactly 0 that carries derivatives still needs them (d x(t - D) / dD = -v): a fit
+  // started at D = 0 saw a zero gradient and never left it (36 times the floor on a record with
+  // D = 0.3 samples).
+  if (value_of(delay) == 0.0 && !has_derivative(delay)) return;
   std::size_t j = 0;  // time[j] <= target < time[j + 1]; targets increase with k
   for (std::size_t k = 0; k < n; ++k) {
     const T target = T(time[k]) - delay;
