@@ -193,6 +193,7 @@ State accepted(const Context& c, const State& s, const Tried& t) {
   o.max_iterations = c.options.max_iterations;
   o.max_operators = c.options.method.max_operators;
   o.global_stage = false;
+  o.grow_operators = false;
   bool restarted = false;
   const ExtendedSlipFit g = extension_detail::restart_base(c.est, t.result, o, restarted);
   if (restarted) {

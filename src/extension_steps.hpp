@@ -46,7 +46,8 @@ void judge_evidence(ExtensionIdentification& res, const std::vector<Effect>& eff
 std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit& cur);
 
 /// The restart (section 1): NLR (order selected again) on the force without the pieces, the joint
-/// fit from that base; the fit with the lower BIC is returned (`restarted` says which).
+/// fit from that base; the fit with the lower BIC is returned (`restarted` says which), then
+/// grown one operator at a time while BIC falls (o.grow_operators, section 1: Order growth).
 ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
                              const ExtensionFitOptions& o, bool& restarted);
 
