@@ -494,14 +494,30 @@ struct FreeCovariance {
   // Per position in `columns`: estimable on this record (rank-deficient fits: see covariance_at).
   std::vector<char> estimable;
   ResidualColour colour;  // of the residual at the optimum
+  // The directions the data do not see (unit-norm columns, in the column-scaled coordinates
+  // theta_q * scale_q), and those scales.
+  Eigen::MatrixXd null_directions;
+  Eigen::VectorXd scale;
+  // Position of block-0 column c in the covariance; -1 when it is not free or not computed.
+  std::ptrdiff_t position_of(std::size_t c) const {
+    if (!ok) return -1;
+    const auto it = std::find(columns.begin(), columns.end(), c);
+    return it == columns.end() ? -1 : it - columns.begin();
+  }
   // Position of block-0 column c in the covariance; -1 when it is not free, not estimable or not
   // computed.
   std::ptrdiff_t column_of(std::size_t c) const {
-    if (!ok) return -1;
-    const auto it = std::find(columns.begin(), columns.end(), c);
-    if (it == columns.end()) return -1;
-    const auto q = it - columns.begin();
-    return estimable[static_cast<std::size_t>(q)] ? q : -1;
+    const std::ptrdiff_t q = position_of(c);
+    return q >= 0 && estimable[static_cast<std::size_t>(q)] ? q : -1;
+  }
+  // Whether the linear function g^T theta (g over the covariance's columns) is estimable: g has no
+  // part in the directions the data do not see (the test covariance_at applies to single
+  // parameters).
+  bool estimable_function(const Eigen::VectorXd& g) const {
+    if (!ok) return false;
+    const Eigen::VectorXd gs = g.cwiseQuotient(scale);
+    if (null_directions.cols() == 0) return true;
+    return (null_directions.transpose() * gs).squaredNorm() < 1e-6 * gs.squaredNorm();
   }
 };
 
@@ -552,11 +568,13 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
   Eigen::VectorXd inverse = Eigen::VectorXd::Zero(ev.size());
   out.estimable.assign(p, 1);
   Eigen::VectorXd leverage = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p));
+  std::vector<Eigen::Index> null;
   for (Eigen::Index e = 0; e < ev.size(); ++e) {
     if (ev(e) > 1e-12 * emax) {
       inverse(e) = 1.0 / ev(e);
     } else {
       out.rank_deficient = true;
+      null.push_back(e);
       leverage += eig.eigenvectors().col(e).cwiseAbs2();
     }
   }
@@ -577,14 +595,22 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
   }
   out.covariance = d.cwiseInverse().asDiagonal() * sandwich_covariance(Hinv, gram.coloured(), s2) *
                    d.cwiseInverse().asDiagonal();
+  out.scale = d;
+  out.null_directions.resize(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(null.size()));
+  for (std::size_t j = 0; j < null.size(); ++j)
+    out.null_directions.col(static_cast<Eigen::Index>(j)) = eig.eigenvectors().col(null[j]);
   out.ok = true;
   return out;
 }
 
 // The standard error of a derived parameter: normal-load's mu = F0 / N_mean with F0 = sum k_i
 // Delta_i, by the delta method from the covariance of (log k_i, log Delta_i) (effect_table.hpp:
-// mu is derived because it is not identifiable beside the thresholds).  Nothing when the base was
-// held or the covariance is missing.
+// mu is derived because it is not identifiable beside the thresholds).  An operator parameter
+// held at a bound of its box is fixed there, as it is for the covariance of every other
+// parameter, and adds no variance.  F0 is often estimable where single operators are not (two
+// operators that trade stiffness for threshold): what counts is that the gradient of F0 has no
+// part in the directions the data do not see.  Nothing when the base was held, the covariance
+// is missing or F0 is not estimable.
 template <class Family>
 void derived_standard_error(const Family& family, const std::vector<double>& base_theta,
                             const FreeCovariance& cov, ExtensionEstimate& est) {
@@ -599,11 +625,11 @@ void derived_standard_error(const Family& family, const std::vector<double>& bas
     const double w = std::exp(base_theta[i] + base_theta[m + i]);  // k_i Delta_i
     f0 += w;
     for (std::size_t c : {i, m + i}) {
-      const std::ptrdiff_t q = cov.column_of(c);
-      if (q < 0) return;  // a stiffness or threshold without a standard error
-      g[q] = w;
+      const std::ptrdiff_t q = cov.position_of(c);
+      if (q >= 0) g[q] = w;  // else held at a bound
     }
   }
+  if (!cov.estimable_function(g)) return;
   const double se_relative = std::sqrt(std::max(g.dot(cov.covariance * g), 0.0)) / f0;
   est.standard_error = est.value * se_relative;
   est.lower95 = est.value - 1.959964 * est.standard_error;
