@@ -94,6 +94,7 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
   Chain chain = forward_pass(c, b.state, applicable(o, est), dx.first_round);
   warn_if_short_of_operators(dx);
   chain = backward_pass(c, std::move(chain));
+  polish_final(c, chain);
   dx.warnings.insert(dx.warnings.end(), chain.warnings.begin(), chain.warnings.end());
   report(c, chain, dx);
   dx.seconds = seconds_since(started);

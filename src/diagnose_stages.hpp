@@ -1,13 +1,17 @@
 // The stages of diagnose() (diagnose.hpp), private to the library, over typed data:
 //
-//   fit_baseline      the NLR baseline and what one more operator buys (rule b)
-//   diagnose_baseline.cpp fit_lugre_baseline  a LuGre baseline and its one candidate,
-//   nonlocal-memory   diagnose_baseline.cpp gather_evidence   the residual of a model on a record
-//   residual_evidence.cpp fit_candidates    every remaining candidate on top of the current model
-//   diagnose_candidates.cpp accept            the acceptance rule of section 4, as a Verdict
-//   diagnose_candidates.cpp forward_pass      greedy rounds diagnose_candidates.cpp backward_pass
-//   removal of pieces that no longer earn their place           diagnose_candidates.cpp report
-//   findings, warnings and the final model                      diagnose_report.cpp
+//   fit_baseline       the NLR baseline and what one more operator buys    diagnose_baseline.cpp
+//   fit_lugre_baseline a LuGre baseline and its one candidate, nonlocal-memory
+//                                                                           diagnose_baseline.cpp
+//   gather_evidence    the residual of a model on a record                 residual_evidence.cpp
+//   fit_candidates     every remaining candidate on top of the current model
+//                                                                         diagnose_candidates.cpp
+//   accept             the acceptance rule of section 4, as a Verdict     diagnose_candidates.cpp
+//   forward_pass       greedy rounds                                      diagnose_candidates.cpp
+//   backward_pass      removal of pieces that no longer earn their place  diagnose_candidates.cpp
+//   polish_final       the final model's restart with global stage and growth
+//                                                                         diagnose_candidates.cpp
+//   report             findings, warnings and the final model               diagnose_report.cpp
 //
 // No stage shares mutable state with another: each takes its inputs by const reference (the
 // records, the options and the immutable Context) and returns a value.  The candidates of a round
@@ -122,6 +126,11 @@ Chain forward_pass(const Context& c, const State& start, const std::vector<Effec
 /// Removes accepted pieces that no longer earn their place against the others, and recomputes
 /// the chain for what remains.
 Chain backward_pass(const Context& c, Chain chain);
+
+/// The final model's restart with the global stage and the order growth of identify
+/// (extension_identification.hpp, section 1), once, after the backward pass: kept when its BIC
+/// is lower.
+void polish_final(const Context& c, Chain& chain);
 
 // ---- report ---------------------------------------------------------------------------------
 

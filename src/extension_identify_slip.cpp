@@ -164,10 +164,11 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
 // fixed M, the order grows one operator at a time while BIC falls (header comment, 1: Order
 // growth).
 ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
-                             const ExtensionFitOptions& o, bool& restarted) {
+                             const ExtensionFitOptions& o, bool& restarted, bool keep_order) {
   ExtendedSlipFit best = cur;
   // M may differ (it is selected again on the corrected force): compare by BIC.
-  if (auto g = fit_from_nlr(r, cur, o, o.operators); g && fit_bic(r, *g) < fit_bic(r, best)) {
+  const std::size_t m = keep_order && o.operators == 0 ? cur.base.size() : o.operators;
+  if (auto g = fit_from_nlr(r, cur, o, m); g && fit_bic(r, *g) < fit_bic(r, best)) {
     best = std::move(*g);
     restarted = true;
   }

@@ -48,8 +48,11 @@ std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit&
 /// The restart (section 1): NLR (order selected again) on the force without the pieces, the joint
 /// fit from that base; the fit with the lower BIC is returned (`restarted` says which), then
 /// grown one operator at a time while BIC falls (o.grow_operators, section 1: Order growth).
+/// `keep_order`: the restart's NLR fits the M of `cur` instead of selecting it (growth still
+/// follows).
 ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
-                             const ExtensionFitOptions& o, bool& restarted);
+                             const ExtensionFitOptions& o, bool& restarted,
+                             bool keep_order = false);
 
 /// Maxwell Slip base: the base and all pieces refitted jointly, with the restart (section 1).
 void identify_on_maxwell_slip(ExtensionIdentification& res,
