@@ -134,6 +134,49 @@ double lowest_sliding_speed(const Context& c, const ExtendedSlipFit& f) {
   return nearest_rank_quantile(std::move(speeds), 0.05);
 }
 
+// The time shift that stepping the model once per sample imitates (diagnose.hpp, Nested
+// candidates): the model of `s` run on the record refined to four steps per sample (the
+// displacement by the cubic through the four nearest samples, the normal force linearly) against
+// the same model run per sample; D is the least-squares shift with F_fine(t) ~ F_sample(t + D).
+double stepping_shift(const Context& c, const State& s) {
+  const Record& r = c.est;
+  const std::size_t n = r.size(), steps = 4;
+  if (n < 8) return 0.0;
+  Record fine;
+  fine.source = r.source;
+  for (std::size_t k = 0; k + 1 < n; ++k)
+    for (std::size_t j = 0; j < steps; ++j) {
+      const double w = static_cast<double>(j) / static_cast<double>(steps);
+      const double t = r.time[k] + w * (r.time[k + 1] - r.time[k]);
+      fine.time.push_back(t);
+      // Lagrange weights of samples lo .. lo + 3 at t (lo kept inside the record).
+      const std::size_t lo = std::min(k > 0 ? k - 1 : 0, n - 4);
+      double x = 0;
+      for (std::size_t a = lo; a < lo + 4; ++a) {
+        double l = 1;
+        for (std::size_t b = lo; b < lo + 4; ++b)
+          if (b != a) l *= (t - r.time[b]) / (r.time[a] - r.time[b]);
+        x += l * r.displacement[a];
+      }
+      fine.displacement.push_back(x);
+      if (!r.normal.empty()) fine.normal.push_back((1 - w) * r.normal[k] + w * r.normal[k + 1]);
+    }
+  fine.time.push_back(r.time.back());
+  fine.displacement.push_back(r.displacement.back());
+  if (!r.normal.empty()) fine.normal.push_back(r.normal.back());
+  fine.force.assign(fine.time.size(), 0.0);
+  const std::vector<double> initial = deflections_from_relative(s.base, s.rho, s.ext);
+  const std::vector<double> coarse = run_extended_slip(s.base, s.ext, initial, r).force;
+  const std::vector<double> refined = run_extended_slip(s.base, s.ext, initial, fine).force;
+  double num = 0, den = 0;
+  for (std::size_t k = 1; k + 1 < n; ++k) {
+    const double slope = (coarse[k + 1] - coarse[k - 1]) / (r.time[k + 1] - r.time[k - 1]);
+    num += (refined[k * steps] - coarse[k]) * slope;
+    den += slope * slope;
+  }
+  return den > 0 ? num / den : 0.0;
+}
+
 // Nested candidates (diagnose.hpp): a velocity lag that ends at (almost) no lag is its velocity
 // piece, and a lag fitted with its own companion must beat the companion alone (BIC); a Stribeck
 // curve must fall where the record slides.
@@ -151,6 +194,17 @@ void check_nested(const Context& c, const State& s, std::vector<Tried>& round) {
       if (visible < c.sigma) {
         t.fit.earns_place = false;
         t.fit.verdict.nested = Verdict::Nested::drop_below_sliding;
+      }
+      continue;
+    }
+    if (t.fit.effect == Effect::delay && t.fit.verdict.earns_place_but_for_an_edge() &&
+        t.result.ext.delay) {
+      // A model stepped per sample imitates the shift -D_step; what the fit adds beyond it must
+      // exceed it to be a delay of the record.
+      const double artefact = -stepping_shift(c, s);
+      if (std::abs(t.result.ext.delay->delay - artefact) <= std::abs(artefact)) {
+        t.fit.earns_place = false;
+        t.fit.verdict.nested = Verdict::Nested::delay_within_stepping;
       }
       continue;
     }

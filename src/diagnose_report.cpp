@@ -206,6 +206,9 @@ std::string Verdict::to_text() const {
   if (nested == Nested::drop_below_sliding)
     return "what is left of the Stribeck drop at the record's lowest sliding speeds (5 % "
            "quantile) is below the force noise: it corrects the presliding, not the sliding force";
+  if (nested == Nested::delay_within_stepping)
+    return "the delay is no larger than the shift that stepping the model once per sample "
+           "imitates (a reversal between two samples): not a delay of the record";
   if (nested == Nested::no_better_than_viscous)
     return "no better than the viscous piece alone (BIC)";
   std::ostringstream s;
