@@ -136,7 +136,7 @@ double lowest_sliding_speed(const Context& c, const ExtendedSlipFit& f) {
 
 // The time shift that stepping the model once per sample imitates (diagnose.hpp, Nested
 // candidates): the model of `s` run on the record refined to four steps per sample (the
-// displacement by the cubic through the four nearest samples, the normal force linearly) against
+// displacement by interpolate_displacement, the normal force linearly) against
 // the same model run per sample; D is the least-squares shift with F_fine(t) ~ F_sample(t + D).
 double stepping_shift(const Context& c, const State& s) {
   const Record& r = c.est;
@@ -149,16 +149,8 @@ double stepping_shift(const Context& c, const State& s) {
       const double w = static_cast<double>(j) / static_cast<double>(steps);
       const double t = r.time[k] + w * (r.time[k + 1] - r.time[k]);
       fine.time.push_back(t);
-      // Lagrange weights of samples lo .. lo + 3 at t (lo kept inside the record).
-      const std::size_t lo = std::min(k > 0 ? k - 1 : 0, n - 4);
-      double x = 0;
-      for (std::size_t a = lo; a < lo + 4; ++a) {
-        double l = 1;
-        for (std::size_t b = lo; b < lo + 4; ++b)
-          if (b != a) l *= (t - r.time[b]) / (r.time[a] - r.time[b]);
-        x += l * r.displacement[a];
-      }
-      fine.displacement.push_back(x);
+      fine.displacement.push_back(interpolate_displacement(
+          std::span<const double>(r.time), std::span<const double>(r.displacement), k, t));
       if (!r.normal.empty()) fine.normal.push_back((1 - w) * r.normal[k] + w * r.normal[k + 1]);
     }
   fine.time.push_back(r.time.back());

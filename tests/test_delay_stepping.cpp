@@ -20,19 +20,12 @@
 
 #include "friction/diagnose.hpp"
 #include "study_design.hpp"
+#include "truth_records.hpp"
 
 namespace friction {
 namespace {
 
-Record record_of(const truth::Trace& t) {
-  Record r;
-  r.time = t.time;
-  r.displacement = t.position;
-  r.force = t.force;
-  r.normal = t.normal;
-  r.source = "simulated";
-  return r;
-}
+using testing::record_of;
 
 std::vector<std::string> named(const truth::RecordSpec& spec) {
   const truth::StudyRecord s = truth::make_record(spec);

@@ -20,6 +20,7 @@
 #include "friction/maxwell_slip.hpp"
 #include "friction/methods.hpp"
 #include "friction/model_io.hpp"
+#include "truth_records.hpp"
 #include "truth_simulator.hpp"
 
 namespace friction {
@@ -96,15 +97,6 @@ AnyModel true_model(const truth::System& s) {
   return AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(p), ext));
 }
 
-Record slice_of(const truth::Trace& t, std::size_t begin) {
-  Record r;
-  r.time.assign(t.time.begin() + static_cast<std::ptrdiff_t>(begin), t.time.end());
-  r.displacement.assign(t.position.begin() + static_cast<std::ptrdiff_t>(begin), t.position.end());
-  r.force.assign(t.force.begin() + static_cast<std::ptrdiff_t>(begin), t.force.end());
-  r.source = "simulated";
-  return r;
-}
-
 double rss(const std::vector<double>& a, const std::vector<double>& b, std::size_t begin) {
   double s = 0;
   for (std::size_t k = begin; k < a.size(); ++k) s += (a[k] - b[k]) * (a[k] - b[k]);
@@ -121,10 +113,10 @@ TEST(InitialLevel, ACutRecordValidatesAsWellAsTheRunThatKnowsItsHistory) {
     AnyModel model = true_model(c.system);
     const std::size_t n = c.trace.time.size();
     ASSERT_GT(n, 1000u) << "seed " << seed;
-    const Record whole = slice_of(c.trace, 0);
+    const Record whole = testing::record_of(c.trace);
     const std::vector<double> from_rest = model.simulate(whole);
     for (std::size_t begin : {c.rest_after_sliding, n / 3, n / 2, 2 * n / 3}) {
-      const Record r = slice_of(c.trace, begin);
+      const Record r = testing::record_of(c.trace, begin);
       const Validation v = validate_model(model, r);
       const double got = rss(r.force, v.simulated, 0);
       double known = 0;
@@ -146,7 +138,7 @@ TEST(InitialLevel, TheEstimatedStateHoldsTheForceBeyondTheNominalLimits) {
   const Case c = make_case(4242u, 2.5);
   const AnyModel model = true_model(c.system);
   const std::size_t begin = c.rest_after_sliding, ne = c.system.elements.size();
-  const Record r = slice_of(c.trace, begin);
+  const Record r = testing::record_of(c.trace, begin);
   double clean0 = 0;
   for (std::size_t i = 0; i < ne; ++i) clean0 += c.trace.element_force[begin * ne + i];
   ASSERT_LT(clean0, -c.system.coulomb - 20 * c.sigma)

@@ -25,19 +25,12 @@
 #include "friction/effect_table.hpp"
 #include "friction/methods.hpp"
 #include "study_design.hpp"
+#include "truth_records.hpp"
 
 namespace friction {
 namespace {
 
-Record record_of(const truth::Trace& t) {
-  Record r;
-  r.time = t.time;
-  r.displacement = t.position;
-  r.force = t.force;
-  r.normal = t.normal;
-  r.source = "simulated";
-  return r;
-}
+using testing::record_of;
 
 double validation_percent(const truth::StudyRecord& s, const MethodOptions& o) {
   const IdentifiedModel id = identify_model("maxwell-slip", record_of(s.trace_estimation), o);

@@ -21,6 +21,7 @@
 #include "friction/effect_table.hpp"
 #include "friction/methods.hpp"
 #include "friction/model_io.hpp"
+#include "truth_records.hpp"
 #include "truth_simulator.hpp"
 
 namespace friction {
@@ -86,11 +87,7 @@ TEST(PositionProfile, ManyPeriodsOverTheTravelStartInTheRightBasin) {
          return v;
        }()) {
     const Case c = make_case(seed, periods);
-    Record r;
-    r.time = c.trace.time;
-    r.displacement = c.trace.position;
-    r.force = c.trace.force;
-    r.source = "simulated";
+    const Record r = testing::record_of(c.trace);
     const auto [lo, hi] = std::minmax_element(r.displacement.begin(), r.displacement.end());
     const double travel = *hi - *lo;
     MethodOptions o;

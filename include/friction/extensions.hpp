@@ -620,6 +620,25 @@ class Extended {
 /// normal-load piece), force [N] written to `force`.  Delay by interpolation, the pieces' velocity
 /// and acceleration at the sample instants by the record's derivative windows (computed here when
 /// `windows` is null), as the header comment says.
+/// The displacement at `target`, time[j] <= target < time[j + 1] (j + 1 < x.size()): the cubic
+/// through samples j-1 .. j+2, linear in the first and last interval (delayed_displacement_into
+/// says why cubic).
+template <typename T>
+T interpolate_displacement(std::span<const double> time, std::span<const T> x, std::size_t j,
+                           const T& target) {
+  if (j == 0 || j + 2 >= x.size()) {
+    const T w = (target - time[j]) / (time[j + 1] - time[j]);
+    return x[j] + (x[j + 1] - x[j]) * w;
+  }
+  // Lagrange weights of the samples j-1 .. j+2 at the target time.
+  const double t0 = time[j - 1], t1 = time[j], t2 = time[j + 1], t3 = time[j + 2];
+  const T d0 = target - t0, d1 = target - t1, d2 = target - t2, d3 = target - t3;
+  return x[j - 1] * (d1 * d2 * d3 / ((t0 - t1) * (t0 - t2) * (t0 - t3))) +
+         x[j] * (d0 * d2 * d3 / ((t1 - t0) * (t1 - t2) * (t1 - t3))) +
+         x[j + 1] * (d0 * d1 * d3 / ((t2 - t0) * (t2 - t1) * (t2 - t3))) +
+         x[j + 2] * (d0 * d1 * d2 / ((t3 - t0) * (t3 - t1) * (t3 - t2)));
+}
+
 /// The displacement at t_k - D, interpolated by the cubic through the four samples around it
 /// (linearly in the first and last interval) and held at the first / last sample outside the
 /// record (header: Delay); x itself when D = 0.  Why cubic: linear interpolation at the fraction w
@@ -645,18 +664,7 @@ void delayed_displacement_into(std::span<const double> time, std::span<const T> 
       xs[k] = x.back();
     } else {
       while (j + 1 < n && time[j + 1] <= tv) ++j;
-      if (j == 0 || j + 2 >= n) {
-        const T w = (target - time[j]) / (time[j + 1] - time[j]);
-        xs[k] = x[j] + (x[j + 1] - x[j]) * w;
-      } else {
-        // Lagrange weights of the samples j-1 .. j+2 at the target time.
-        const double t0 = time[j - 1], t1 = time[j], t2 = time[j + 1], t3 = time[j + 2];
-        const T d0 = target - t0, d1 = target - t1, d2 = target - t2, d3 = target - t3;
-        xs[k] = x[j - 1] * (d1 * d2 * d3 / ((t0 - t1) * (t0 - t2) * (t0 - t3))) +
-                x[j] * (d0 * d2 * d3 / ((t1 - t0) * (t1 - t2) * (t1 - t3))) +
-                x[j + 1] * (d0 * d1 * d3 / ((t2 - t0) * (t2 - t1) * (t2 - t3))) +
-                x[j + 2] * (d0 * d1 * d2 / ((t3 - t0) * (t3 - t1) * (t3 - t2)));
-      }
+      xs[k] = interpolate_displacement(time, x, j, target);
     }
   }
 }
