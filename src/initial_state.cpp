@@ -12,28 +12,6 @@
 namespace friction {
 namespace {
 
-struct Prediction {
-  Eigen::VectorXd force;
-  Eigen::MatrixXd jacobian;  // d Fhat / d d_i
-};
-
-Prediction predict(std::span<const double> x, std::span<const double> thresholds,
-                   const Eigen::MatrixXd& filter, std::span<const double> d, bool with_jacobian) {
-  const auto traj = detail::operator_trajectories(thresholds, d, x, with_jacobian);
-  const Eigen::Index n = traj.delta.rows(), m = traj.delta.cols();
-  Prediction p;
-  p.force = Eigen::VectorXd::Zero(n);
-  if (with_jacobian) p.jacobian = Eigen::MatrixXd::Zero(n, m);
-  for (Eigen::Index i = 0; i < m; ++i)
-    for (Eigen::Index j = 0; j < filter.cols(); ++j) {
-      const double c = filter(i, j);
-      if (c == 0.0) continue;
-      p.force += c * detail::lagged(traj.delta.col(i), j);
-      if (with_jacobian) p.jacobian.col(i) += c * detail::lagged(traj.d_initial.col(i), j);
-    }
-  return p;
-}
-
 // Single-operator trajectory from initial deflection d (unit stiffness), sample 0 included.
 Eigen::VectorXd single_trajectory(std::span<const double> x, double threshold, double d) {
   const Eigen::Index n = static_cast<Eigen::Index>(x.size());
@@ -154,6 +132,66 @@ class OneOperator {
     return best_d;
   }
 
+  /// The first sample at which the operator started from d (clamped to the box) is clamped, and
+  /// at which bound (true: the top), n when it never is.  It moves as d + xi(t) until xi exceeds
+  /// Delta - d (a new running maximum) or falls below -Delta - d (a new running minimum), and
+  /// from that sample on it is the reference trajectory of that bound (the comment above the
+  /// class).  Strict inequalities, as the recursion clamps: an operator that only touches its
+  /// bound still moves with d.
+  std::pair<Eigen::Index, bool> saturation(double d) const {
+    const double* mx = run_max_.data();
+    const double* mn = run_min_.data();
+    const Eigen::Index tt = std::upper_bound(mx, mx + n_, threshold_ - d) - mx;
+    const Eigen::Index tb =
+        std::upper_bound(mn, mn + n_, -threshold_ - d, [](double u, double v) { return u > v; }) -
+        mn;
+    return {std::min(tt, tb), tt <= tb};
+  }
+
+  /// sum_j taps_j delta(t - j; d) written to (or, with `add`, added to) out, from the pieces of
+  /// the trajectory instead of its recursion: Theta d + eta(t) before the first saturation, the
+  /// filtered reference trajectory from `lags` samples after it, and the few samples between
+  /// explicitly.  No sample depends on the one before, so every pass vectorises; stepping the
+  /// recursion (a chain of dependent additions and clamps) was most of the estimate's time.
+  void contribution(double d, Eigen::Ref<Eigen::VectorXd> out, bool add) const {
+    d = std::clamp(d, -threshold_, threshold_);
+    const auto [tau, top] = saturation(d);
+    const Eigen::VectorXd& ref = top ? ref_top_ : ref_bottom_;
+    const Eigen::VectorXd& f_ref = top ? f_top_ : f_bottom_;
+    const Eigen::Index end = std::min(n_, tau + lags_);
+    const double level = big_theta_ * d;
+    if (add) {
+      out.head(tau).array() += eta_.head(tau).array() + level;
+      out.tail(n_ - end) += f_ref.tail(n_ - end);
+    } else {
+      out.head(tau).array() = eta_.head(tau).array() + level;
+      out.tail(n_ - end) = f_ref.tail(n_ - end);
+    }
+    for (Eigen::Index t = tau; t < end; ++t) {
+      double f = 0.0;
+      for (Eigen::Index j = 0; j <= lags_; ++j) {
+        const Eigen::Index s = std::max<Eigen::Index>(t - j, 0);
+        f += taps_(j) * (s < tau ? d + xi_(s) : ref(s));
+      }
+      out(t) = add ? out(t) + f : f;
+    }
+  }
+
+  /// d/dd of the contribution: sum_j taps_j [t - j before the first saturation].
+  void sensitivity(double d, Eigen::Ref<Eigen::VectorXd> out) const {
+    d = std::clamp(d, -threshold_, threshold_);
+    const Eigen::Index tau = saturation(d).first;
+    const Eigen::Index end = std::min(n_, tau + lags_);
+    out.head(tau).setConstant(big_theta_);
+    out.tail(n_ - end).setZero();
+    for (Eigen::Index t = tau; t < end; ++t) {
+      double g = 0.0;
+      for (Eigen::Index j = 0; j <= lags_; ++j)
+        if (std::max<Eigen::Index>(t - j, 0) < tau) g += taps_(j);
+      out(t) = g;
+    }
+  }
+
  private:
   struct Piece {
     double lo, hi;
@@ -208,8 +246,23 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
   const Eigen::Map<const Eigen::VectorXd> y(target.data(),
                                             static_cast<Eigen::Index>(target.size()));
 
+  // Operator i's filtered trajectory in pieces (OneOperator): no evaluation steps the recursion.
+  std::vector<OneOperator> single;
+  for (std::size_t i = 0; i < m; ++i)
+    single.emplace_back(x, thresholds[i],
+                        Eigen::RowVectorXd(filter.row(static_cast<Eigen::Index>(i))));
+  std::vector<char> active(m);
+  for (std::size_t i = 0; i < m; ++i)
+    active[i] = !filter.row(static_cast<Eigen::Index>(i)).isZero();
+  Eigen::VectorXd force(y.size());
+  const auto predict = [&](const std::vector<double>& d, Eigen::VectorXd& f) {
+    f.setZero(y.size());
+    for (std::size_t i = 0; i < m; ++i)
+      if (active[i]) single[i].contribution(d[i], f, true);
+  };
   auto cost_of = [&](const std::vector<double>& d) {
-    return (y - predict(x, thresholds, filter, d, false).force).squaredNorm();
+    predict(d, force);
+    return (y - force).squaredNorm();
   };
 
   // 1. Scan of plausible states.
@@ -237,10 +290,10 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
     ranked.emplace_back(cost_of(candidates[c]), c);
   std::sort(ranked.begin(), ranked.end());
 
-  std::vector<OneOperator> single;
-  for (std::size_t i = 0; i < m; ++i)
-    single.emplace_back(x, thresholds[i],
-                        Eigen::RowVectorXd(filter.row(static_cast<Eigen::Index>(i))));
+  // Buffers of the refinements, reused by every start.
+  const Eigen::Index mi = static_cast<Eigen::Index>(m);
+  Eigen::MatrixXd contribution(y.size(), mi), jacobian;
+  Eigen::VectorXd total, yi(y.size()), ci(y.size()), r;
   auto refine = [&](std::vector<double> best, int rounds = 4, int sweeps = 4,
                     int gn_iterations = 8) {
     double best_cost = cost_of(best);
@@ -248,28 +301,22 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
     // 3. projected Gauss-Newton on all operators together (it moves along the valleys where only a
     //    weighted sum of deflections is seen, which coordinate steps cannot follow); alternated
     //    while either improves the cost.
-    const Eigen::Index mi = static_cast<Eigen::Index>(m);
     for (int round = 0; round < rounds; ++round) {
       const double round_start = best_cost;
       {
-        const Eigen::Index n = y.size();
-        Eigen::MatrixXd contribution(n, mi);
         for (Eigen::Index i = 0; i < mi; ++i)
-          contribution.col(i) =
-              filtered(single_trajectory(x, thresholds[static_cast<std::size_t>(i)],
-                                         best[static_cast<std::size_t>(i)]),
-                       filter.row(i));
-        Eigen::VectorXd total = contribution.rowwise().sum();
+          single[static_cast<std::size_t>(i)].contribution(best[static_cast<std::size_t>(i)],
+                                                          contribution.col(i), false);
+        total = contribution.rowwise().sum();
         for (int sweep = 0; sweep < sweeps; ++sweep) {
           bool moved = false;
           for (Eigen::Index i = 0; i < mi; ++i) {
             const std::size_t iu = static_cast<std::size_t>(i);
             if (filter.row(i).isZero()) continue;
-            const Eigen::VectorXd yi = y - (total - contribution.col(i));
+            yi = y - (total - contribution.col(i));
             const double d = single[iu].minimise(yi);
             if (d == best[iu]) continue;
-            const Eigen::VectorXd ci =
-                filtered(single_trajectory(x, thresholds[iu], d), filter.row(i));
+            single[iu].contribution(d, ci, false);
             const double before = (yi - contribution.col(i)).squaredNorm();
             const double after = (yi - ci).squaredNorm();
             if (after < before - 1e-9 * best_cost) {
@@ -285,14 +332,18 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
       }
 
       for (int it = 0; it < gn_iterations; ++it) {
-        const Prediction p = predict(x, thresholds, filter, best, true);
-        const Eigen::VectorXd r = y - p.force;
+        predict(best, force);
+        jacobian.resize(y.size(), mi);
+        for (Eigen::Index i = 0; i < mi; ++i)
+          single[static_cast<std::size_t>(i)].sensitivity(best[static_cast<std::size_t>(i)],
+                                                         jacobian.col(i));
+        r = y - force;
         Eigen::VectorXd lo(mi), hi(mi);
         for (Eigen::Index i = 0; i < mi; ++i) {
           lo(i) = -thresholds[static_cast<std::size_t>(i)] - best[static_cast<std::size_t>(i)];
           hi(i) = thresholds[static_cast<std::size_t>(i)] - best[static_cast<std::size_t>(i)];
         }
-        const Eigen::VectorXd step = detail::box_least_squares(p.jacobian, r, lo, hi);
+        const Eigen::VectorXd step = detail::box_least_squares(jacobian, r, lo, hi);
         if (step.norm() <= 1e-14 * dmax) break;
         bool accepted = false;
         for (double alpha = 1.0; alpha > 1e-4; alpha *= 0.25) {

@@ -12,7 +12,10 @@
 // and after that first saturation it no longer depends on d_i at all (an operator at its bound
 // forgets how it got there).  So d delta_i(t) / d d_i is the indicator "not yet saturated": 1 up
 // to the first saturation, 0 after, and the force is piecewise linear in d with a Jacobian that
-// is cheap and exact.  The estimate minimises sum_t (F(t) - Fhat(t; d))^2 over the box
+// is cheap and exact.  Every evaluation is made from these pieces, never by stepping the
+// recursion: the first saturation is a binary search in the running maximum and minimum of
+// x(t) - x(0), after it the operator follows the trajectory started at that bound (computed once),
+// so a trajectory is two vectorised copies instead of a chain of N dependent clamps.  The estimate minimises sum_t (F(t) - Fhat(t; d))^2 over the box
 // -Delta_i <= d_i <= Delta_i by
 //   1. a scan over physically plausible states: the virgin state d = 0, and the states left by
 //      sliding in either direction and then reversing by a travel u (d_i = s max(Delta_i - u,
