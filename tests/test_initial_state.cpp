@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -180,10 +181,14 @@ RandomCase random_case(unsigned seed) {
   return c;
 }
 
-// Seeds chosen for these tests, not tuned on.
-constexpr std::array<unsigned, 16> kRandomSeeds{70111u, 70112u, 70113u, 70114u, 70115u, 70116u,
-                                                70117u, 70118u, 70119u, 70120u, 70121u, 70122u,
-                                                70123u, 70124u, 70125u, 70126u};
+// Seeds of these tests: 70111-70126 were the ones the valley moves of the search were developed
+// on; 81001-81040 were drawn after and first run once the search was settled.
+constexpr std::array<unsigned, 56> kRandomSeeds{
+    70111u, 70112u, 70113u, 70114u, 70115u, 70116u, 70117u, 70118u, 70119u, 70120u, 70121u,
+    70122u, 70123u, 70124u, 70125u, 70126u, 81001u, 81002u, 81003u, 81004u, 81005u, 81006u,
+    81007u, 81008u, 81009u, 81010u, 81011u, 81012u, 81013u, 81014u, 81015u, 81016u, 81017u,
+    81018u, 81019u, 81020u, 81021u, 81022u, 81023u, 81024u, 81025u, 81026u, 81027u, 81028u,
+    81029u, 81030u, 81031u, 81032u, 81033u, 81034u, 81035u, 81036u, 81037u, 81038u, 81039u, 81040u};
 
 TEST(InitialState, TheEstimateAgreesWithTheRecursionOnRandomRecords) {
   // Scored by this test's own recursion: given the truth as one of its starts, the estimate can
@@ -202,18 +207,26 @@ TEST(InitialState, TheEstimateAgreesWithTheRecursionOnRandomRecords) {
   }
 }
 
-// A known defect of the search, not yet mended (so disabled; run it with
-// --gtest_also_run_disabled_tests): without the truth among its starts the estimate should reach
-// the truth's cost.  It does not on 3 of these 16 systems: seeds 70119 and 70123 (Maxwell Slip
-// form, M = 4: 4.7 % and 5.9 % above the truth's cost, two operators traded along the valley in
-// which the early samples see only their weighted sum) and 70114 (M = 5, two taps: 8.1 %), the
-// same before and after the estimate evaluated trajectories in pieces.
-TEST(InitialState, DISABLED_TheSearchReachesTheTruthsCostOnRandomRecords) {
+// Without the truth among its starts the estimate should reach the truth's cost.  Before the
+// valley moves it did not on 3 of the first 16 systems and on 7 of the 40 later ones (81001,
+// 81007, 81008, 81015, 81020, 81023, 81034: up to 634x the truth's cost on 81023, M = 4, one tap;
+// two operators traded along the valley in which the early samples see only their weighted sum).
+// With them it still does not on three, a known defect listed here with what they measured (the
+// test prints their ratio); every other seed must reach the truth's cost.
+TEST(InitialState, TheSearchReachesTheTruthsCostOnRandomRecords) {
+  const std::array<unsigned, 3> known_misses{81007u,   // M = 5: 1.8 % above
+                                             81008u,   // M = 5: 7.6 % above
+                                             81015u};  // M = 6, two taps: 5.9 % above
   for (unsigned seed : kRandomSeeds) {
     const RandomCase c = random_case(seed);
     const double truth = recursion_cost(c.x, c.force, c.thr, c.filter, c.d0);
     const std::vector<double> d = estimate_initial_deflections(c.x, c.force, c.thr, c.filter);
-    EXPECT_LE(recursion_cost(c.x, c.force, c.thr, c.filter, d), truth * (1 + 1e-9))
+    const double found = recursion_cost(c.x, c.force, c.thr, c.filter, d);
+    if (std::find(known_misses.begin(), known_misses.end(), seed) != known_misses.end()) {
+      std::printf("known miss, seed %u: %.4f x the truth's cost\n", seed, found / truth);
+      continue;
+    }
+    EXPECT_LE(found, truth * (1 + 1e-9))
         << "seed " << seed << ": M = " << c.thr.size() << ", taps " << c.taps;
   }
 }

@@ -30,7 +30,9 @@
 //      steps cannot; 2 and 3 alternate while either improves.
 // 2-3 are run from the best few scan candidates, the guess and a few seeded uniform starts in the
 // box; the winner is then perturbed on three scales (3, 10, 30 % of each threshold: basin
-// hopping) and refined again, keeping what improves (`InitialStateOptions`).  On the four-operator
+// hopping) and refined again, keeping what improves, and last every pair of operators is moved
+// along the valley in which the early samples see only Theta_i d_i + Theta_j d_j (a scan of the
+// line across the box, its best point refined; `InitialStateOptions`).  On the four-operator
 // test records single starts ended in minima with up to 10x the true state's cost, and local
 // minima a few percent of a threshold apart were only left by the perturbations; with 3 + 8
 // starts and 24 perturbations the true state (noise-free) or a lower cost (noisy) was reached.
@@ -62,10 +64,11 @@ struct InitialStateOptions {
   std::size_t random_starts = 8;       ///< extra seeded uniform starts in the box
   std::size_t perturbations = 24;      ///< basin-hopping perturbations of the winner
   unsigned seed = 1;
+  std::size_t valley_points = 32;  ///< grid points of each pair's valley scan (0: none)
 
   /// One refined start and no global moves: for the many estimates inside an identification,
   /// whose result is refined again by the optimiser or by a final thorough estimate.
-  static InitialStateOptions quick() { return {1, 0, 0, 1}; }
+  static InitialStateOptions quick() { return {1, 0, 0, 1, 0}; }
 };
 
 /// Initial deflections d (|d_i| <= Delta_i) minimising the free-run error of
