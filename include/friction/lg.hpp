@@ -136,6 +136,10 @@ struct LgOptions {
   /// CVODES settings for the Jacobian (sensitivities and log_parameters are forced on).
   CvodesOptions cvodes = lg_default_cvodes();
   bool covariance = true;  ///< standard errors and correlations
+  /// The global stage computes each distinct (velocity, interval) pair's exact-step transition
+  /// once per run instead of once per sample (LuGre::Transition; the same numbers).  false steps
+  /// every sample, for checking.
+  bool memoise_steps = true;
 };
 
 /// The data-driven start and the scales behind it (see the header comment, step 1).

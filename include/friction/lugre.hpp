@@ -179,18 +179,33 @@ class LuGre {
 
   /// Advance over one interval with constant velocity `m.velocity` for `m.dt` (exact solution of
   /// eq. 1) and return eq. 2 at the end of the interval.  No allocation, no branch on derivatives.
-  T step(const Motion<T>& m) noexcept {
+  T step(const Motion<T>& m) noexcept { return step(transition(m)); }
+
+  /// What one interval does, apart from the state: z+ = z_inf + (z - z_inf) decay, with the rate
+  /// |v| / s(v) and the viscous force.  It depends on the motion and the parameters only, so a
+  /// record whose motions repeat can compute each distinct one once per parameter set: an encoder
+  /// at a fixed rate gives a few hundred distinct velocities in 10,000 samples, and the two
+  /// transcendental functions here are most of the cost of a step.  step(m) is
+  /// step(transition(m)), the same operations in the same order.
+  struct Transition {
+    T z_inf, decay, rate, viscous_force;
+  };
+
+  Transition transition(const Motion<T>& m) const noexcept {
     using std::exp;
     const T& v = m.velocity;
     const double direction = sign_of(v);
     const T s = steady_deflection(p_, v, T(m.level * (T(1) + T(direction) * m.asymmetry)));
     const T rate = T(direction) * v / s;  // |v| / s(v) [1/s]
-    const T z_inf = T(direction) * s;
-    const T decay = exp(-rate * m.dt);
-    const T excess = (z_ - z_inf) * decay;
-    z_ = z_inf + excess;
-    const T dz_dt = -rate * excess;
-    return p_.stiffness * z_ + p_.micro_damping * dz_dt + p_.viscous * v;
+    return {T(direction) * s, exp(-rate * m.dt), rate, p_.viscous * v};
+  }
+
+  /// Advance over an interval whose transition is known (eq. 1 exactly, eq. 2 at its end).
+  T step(const Transition& tr) noexcept {
+    const T excess = (z_ - tr.z_inf) * tr.decay;
+    z_ = tr.z_inf + excess;
+    const T dz_dt = -tr.rate * excess;
+    return p_.stiffness * z_ + p_.micro_damping * dz_dt + tr.viscous_force;
   }
 
  private:
