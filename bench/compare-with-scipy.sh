@@ -20,6 +20,14 @@ records=("$@")
 export OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1
 # Debian's python3 carries python3-scipy; a python3 earlier on PATH (pyenv, venv) may not.
 python="${PYTHON:-$(command -v /usr/bin/python3 || command -v python3)}"
+if ! "$python" -c 'import numpy, scipy' 2>/dev/null; then
+  echo "error: $python cannot import numpy and scipy (Debian: apt-get install python3-scipy)" >&2
+  exit 1
+fi
+if [[ ! -f "$scipy" ]]; then
+  echo "error: the scipy script $scipy is missing (set SCIPY_FRICTION to its path)" >&2
+  exit 1
+fi
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
