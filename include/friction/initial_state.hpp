@@ -15,8 +15,8 @@
 // is cheap and exact.  Every evaluation is made from these pieces, never by stepping the
 // recursion: the first saturation is a binary search in the running maximum and minimum of
 // x(t) - x(0), after it the operator follows the trajectory started at that bound (computed once),
-// so a trajectory is two vectorised copies instead of a chain of N dependent clamps.  The estimate minimises sum_t (F(t) - Fhat(t; d))^2 over the box
-// -Delta_i <= d_i <= Delta_i by
+// so a trajectory is two vectorised copies instead of a chain of N dependent clamps.  The
+// estimate minimises sum_t (F(t) - Fhat(t; d))^2 over the box -Delta_i <= d_i <= Delta_i by
 //   1. a scan over physically plausible states: the virgin state d = 0, and the states left by
 //      sliding in either direction and then reversing by a travel u (d_i = s max(Delta_i - u,
 //      -Delta_i), s = +-1, u on a geometric grid spanning the thresholds), plus a caller's
