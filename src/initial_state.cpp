@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <tuple>
 
 #include "slip_regression.hpp"
 
@@ -74,15 +75,9 @@ class OneOperator {
       Piece p;
       p.lo = breaks[k];
       p.hi = breaks[k + 1];
-      const double d = 0.5 * (p.lo + p.hi);
-      const double* mx = run_max_.data();
-      const double* mn = run_min_.data();
-      const Eigen::Index tt = std::lower_bound(mx, mx + n_, threshold - d) - mx;
-      const Eigen::Index tb =
-          std::lower_bound(mn, mn + n_, -threshold - d, [](double u, double v) { return u > v; }) -
-          mn;
-      p.top = tt <= tb;
-      p.tau = std::min(tt, tb);
+      // The midpoint is no breakpoint, so the first saturation is the same with or without
+      // equality at the bound.
+      std::tie(p.tau, p.top) = saturation(0.5 * (p.lo + p.hi));
       pieces_.push_back(p);
     }
   }

@@ -123,8 +123,7 @@ struct Objective {
       const auto key = std::pair(std::bit_cast<std::uint64_t>(motions[k].velocity),
                                  std::bit_cast<std::uint64_t>(motions[k].dt));
       const auto [it, added] = seen.emplace(key, static_cast<std::uint32_t>(distinct.size()));
-      if (added)
-        distinct.push_back(Motion<double>{motions[k].dx, motions[k].velocity, motions[k].dt});
+      if (added) distinct.push_back(motions[k]);
       which[k] = it->second;
     }
     if (4 * distinct.size() > 3 * motions.size()) distinct.clear(), which.clear();

@@ -91,9 +91,8 @@ TEST(InitialState, SpringFilterFormWithLags) {
 // The test's own free run: operators stepped one sample at a time by the clamp recursion, then
 // filtered with the record extended backwards at rest.  Written here, not taken from the library,
 // whose estimate evaluates trajectories from their pieces instead of stepping them.
-double recursion_cost(const std::vector<double>& x, const std::vector<double>& force,
-                      const std::vector<double>& thr, const Eigen::MatrixXd& filter,
-                      const std::vector<double>& d0) {
+std::vector<double> recursion_force(const std::vector<double>& x, const std::vector<double>& thr,
+                                    const Eigen::MatrixXd& filter, const std::vector<double>& d0) {
   const std::size_t m = thr.size(), taps = static_cast<std::size_t>(filter.cols());
   std::vector<std::vector<double>> delta(m, std::vector<double>(x.size()));
   for (std::size_t i = 0; i < m; ++i) {
@@ -103,15 +102,22 @@ double recursion_cost(const std::vector<double>& x, const std::vector<double>& f
       delta[i][k] = s;
     }
   }
-  double rss = 0;
-  for (std::size_t k = 0; k < x.size(); ++k) {
-    double f = 0;
+  std::vector<double> f(x.size(), 0.0);
+  for (std::size_t k = 0; k < x.size(); ++k)
     for (std::size_t i = 0; i < m; ++i)
       for (std::size_t j = 0; j < taps; ++j)
-        f += filter(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) *
-             delta[i][k >= j ? k - j : 0];
-    rss += (force[k] - f) * (force[k] - f);
-  }
+        f[k] += filter(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) *
+                delta[i][k >= j ? k - j : 0];
+  return f;
+}
+
+// Its squared error against `force`.
+double recursion_cost(const std::vector<double>& x, const std::vector<double>& force,
+                      const std::vector<double>& thr, const Eigen::MatrixXd& filter,
+                      const std::vector<double>& d0) {
+  const std::vector<double> f = recursion_force(x, thr, filter, d0);
+  double rss = 0;
+  for (std::size_t k = 0; k < x.size(); ++k) rss += (force[k] - f[k]) * (force[k] - f[k]);
   return rss;
 }
 
@@ -160,24 +166,11 @@ RandomCase random_case(unsigned seed) {
               ? 0.0
               : (j == 0 ? 1.0 : 0.5 * (2 * u(gen) - 1)) * 1e5 * std::pow(10.0, u(gen));
   }
-  c.force.assign(n, 0.0);
-  const double rms = std::sqrt(recursion_cost(c.x, c.force, c.thr, c.filter, c.d0) / n);
-  std::normal_distribution<double> noise(0.0, 1e-3 * rms);
-  std::vector<std::vector<double>> delta(m, std::vector<double>(n));
-  for (std::size_t i = 0; i < m; ++i) {
-    double s = c.d0[i];
-    for (std::size_t k = 0; k < n; ++k) {
-      if (k > 0) s = std::clamp(s + (c.x[k] - c.x[k - 1]), -c.thr[i], c.thr[i]);
-      delta[i][k] = s;
-    }
-  }
-  for (std::size_t k = 0; k < n; ++k) {
-    for (std::size_t i = 0; i < m; ++i)
-      for (std::size_t j = 0; j < c.taps; ++j)
-        c.force[k] += c.filter(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j)) *
-                      delta[i][k >= j ? k - j : 0];
-    c.force[k] += noise(gen);
-  }
+  c.force = recursion_force(c.x, c.thr, c.filter, c.d0);
+  double sum_squares = 0;
+  for (double f : c.force) sum_squares += f * f;
+  std::normal_distribution<double> noise(0.0, 1e-3 * std::sqrt(sum_squares / n));
+  for (double& f : c.force) f += noise(gen);
   return c;
 }
 
