@@ -6,16 +6,11 @@
 
 #include "diagnose_stages.hpp"
 #include "friction/identification.hpp"
+#include "sample_statistics.hpp"
 
 namespace friction::diagnose_detail {
 
 namespace {
-
-double percent(const std::vector<double>& force, double rss) {
-  double s = 0;
-  for (double f : force) s += f * f;
-  return 100.0 * rss / s;
-}
 
 // Rule (b), third part (section 4): what one more Maxwell Slip element buys on the estimation
 // record.  The order selection's table holds M + 1 unless M is the largest M it tried (the cap of
@@ -94,7 +89,7 @@ std::optional<Finding> fit_lugre_baseline(const Context& c, const Baseline& nlr,
   cf.nonlocal_memory = true;
   cf.base = ms.base;
   cf.estimation_rss = ms.rss;
-  cf.estimation_percent = percent(c.est.force, ms.rss);
+  cf.estimation_percent = statistics::rss_sss_percent(c.est.force, ms.rss);
   cf.delta_bic = dbic_full;
   cf.verdict = accept(c, rss_lg, ms.rss, 0, lv.errors.rss_sss_percent, ms.validation);
   cf.required_drop = cf.verdict.required;

@@ -16,6 +16,7 @@
 #include "friction/metrics.hpp"
 #include "friction/noise_colour.hpp"
 #include "parallel_for.hpp"
+#include "sample_statistics.hpp"
 
 namespace friction::diagnose_detail {
 
@@ -32,12 +33,6 @@ double chi2_999(std::size_t p) {
   if (p == 0) return 0.0;
   if (p <= 8) return table[p - 1];
   return 26.12 + 1.8 * static_cast<double>(p - 8);
-}
-
-double percent(const std::vector<double>& force, double rss) {
-  double s = 0;
-  for (double f : force) s += f * f;
-  return 100.0 * rss / s;
 }
 
 std::size_t extra_parameters(const ExtensionParameters<double>& with,
@@ -79,8 +74,8 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
     const ProfiledStart p =
         profile_start(c.est, s.base, s.rho, level, start, e, c.windows, c.scales);
     t.result = fit_extended_slip(
-        c.est, p.base, carried_state(c.est, s.base, s.ext, s.rho, p.base, p.ext, &c.windows),
-        p.ext, false, c.options.max_iterations);
+        c.est, p.base, carried_state(c.est, s.base, s.ext, s.rho, p.base, p.ext, &c.windows), p.ext,
+        false, c.options.max_iterations);
     // A piece accepted on an edge (forward_pass) was fitted without what this candidate adds: its
     // own profile, with the candidate beside it, may find the basin the edge hid (a Stribeck
     // curve alone ran to exponent 5; with the viscous term and the lag its minimum is near 2).
@@ -107,7 +102,7 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
   t.fit.base = t.result.base;
   t.fit.extra_parameters = extra_parameters(start, s.ext);
   t.fit.estimation_rss = t.result.rss;
-  t.fit.estimation_percent = percent(c.est.force, t.result.rss);
+  t.fit.estimation_percent = statistics::rss_sss_percent(c.est.force, t.result.rss);
   // The validation record is only consulted (rule c) when rules a and b pass.
   t.fit.validation_percent = std::numeric_limits<double>::quiet_NaN();
   if (accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation, s.validation - 1.0, phi)
@@ -384,11 +379,10 @@ Chain forward_pass(const Context& c, const State& start, const std::vector<Effec
     if (!edge) break;
     State reduced = last;
     const ExtensionParameters<double> without = without_piece(last, edge->first);
-    const ExtendedSlipFit f =
-        fit_extended_slip(c.est, last.base,
-                          carried_state(c.est, last.base, last.ext, last.rho, last.base, without,
-                                        &c.windows),
-                          without, false, c.options.max_iterations);
+    const ExtendedSlipFit f = fit_extended_slip(
+        c.est, last.base,
+        carried_state(c.est, last.base, last.ext, last.rho, last.base, without, &c.windows),
+        without, false, c.options.max_iterations);
     if (!f.ok) {
       chain.warnings.push_back("kept " + std::string(effect_name(edge->first)) + " with its " +
                                edge->second +
@@ -447,11 +441,10 @@ Chain backward_pass(const Context& c, Chain chain) {
   for (std::size_t i = 0; i < full.order.size();) {
     const Effect e = full.order[i];
     const ExtensionParameters<double> without = without_piece(full, e);
-    const ExtendedSlipFit f =
-        fit_extended_slip(c.est, full.base,
-                          carried_state(c.est, full.base, full.ext, full.rho, full.base, without,
-                                        &c.windows),
-                          without, false, c.options.max_iterations);
+    const ExtendedSlipFit f = fit_extended_slip(
+        c.est, full.base,
+        carried_state(c.est, full.base, full.ext, full.rho, full.base, without, &c.windows),
+        without, false, c.options.max_iterations);
     const double v_without = extended_validation_percent(f.base, f.ext, c.val);
     if (f.ok && f.rss < full.rss) {
       // The model without the piece fits better than the model with it, which nests it: the full

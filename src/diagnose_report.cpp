@@ -9,24 +9,10 @@
 #include "diagnose_stages.hpp"
 #include "friction/extension_identification.hpp"
 #include "friction/identification.hpp"
+#include "number_format.hpp"
+#include "sample_statistics.hpp"
 
 namespace friction {
-
-namespace {
-
-std::string fmt(double v, int precision = 3) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-  return buf;
-}
-
-double percent(const std::vector<double>& force, double rss) {
-  double s = 0;
-  for (double f : force) s += f * f;
-  return 100.0 * rss / s;
-}
-
-}  // namespace
 
 namespace diagnose_detail {
 
@@ -78,13 +64,13 @@ void judge_ambiguity(const Context& c, const std::vector<Tried>* round, const St
               if (pe == se && name == sn) w = v;
             });
           });
-          const ProfiledStart p = profile_start(
-              c.est, from.base, from.rho, first_level(from.base, from.ext, c.est, &c.windows),
-              start, in, c.windows, c.scales);
+          const ProfiledStart p = profile_start(c.est, from.base, from.rho,
+                                                first_level(from.base, from.ext, c.est, &c.windows),
+                                                start, in, c.windows, c.scales);
           ExtendedSlipFit fit = fit_extended_slip(
               c.est, p.base,
-              carried_state(c.est, from.base, from.ext, from.rho, p.base, p.ext, &c.windows),
-              p.ext, false, c.options.max_iterations);
+              carried_state(c.est, from.base, from.ext, from.rho, p.base, p.ext, &c.windows), p.ext,
+              false, c.options.max_iterations);
           if (fit.ok) return fit;
         } catch (const Error&) {
           // The refit failed: the other fit stands.
@@ -128,8 +114,8 @@ Finding make_finding(const Context& c, const Chain& chain, std::size_t i, double
   f.validation_after = after.validation;
   extended_validation_percent(before.base, before.ext, c.val, &f.validation_run_before);
   extended_validation_percent(after.base, after.ext, c.val, &f.validation_run_after);
-  f.estimation_before = percent(c.est.force, before.rss);
-  f.estimation_after = percent(c.est.force, after.rss);
+  f.estimation_before = statistics::rss_sss_percent(c.est.force, before.rss);
+  f.estimation_after = statistics::rss_sss_percent(c.est.force, after.rss);
   f.delta_bic = bayesian_information_criterion(
                     after.rss, c.n, after.ext.parameter_count() - before.ext.parameter_count()) -
                 bayesian_information_criterion(before.rss, c.n, 0);
@@ -162,9 +148,11 @@ void warn_of_strong_rejected(const Context& c, const State& last, Diagnosis& dx)
       cand.verdict.validation = Verdict::Validation::computed_for_report;
     std::ostringstream w;
     w << effect_name(cand.effect) << ": the estimation record supports it (BIC falls by "
-      << fmt(-cand.delta_bic) << ") but its drop there is below what rule (b) asks, so it was not "
+      << format_number(-cand.delta_bic, 3)
+      << ") but its drop there is below what rule (b) asks, so it was not "
       << "accepted; alone on the baseline it gives a validation RSS/SSS of "
-      << fmt(cand.validation_percent, 4) << " % against " << fmt(dx.baseline_validation_percent, 4)
+      << format_number(cand.validation_percent, 4) << " % against "
+      << format_number(dx.baseline_validation_percent, 4)
       << " %. An estimation record in which it acts more ("
       << effect_info(cand.effect).would_establish << ") would decide; `identify --extension "
       << effect_name(cand.effect) << "` fits it on request.";
@@ -190,7 +178,7 @@ void report(const Context& c, const Chain& chain, Diagnosis& dx) {
   dx.final_model = AnyModel(Extended<MaxwellSlip<double>>(
       MaxwellSlip<double>(last.base), to_own_reference(last.ext, last.base.sliding_force())));
   dx.final_validation_percent = last.validation;
-  dx.final_estimation_percent = percent(c.est.force, last.rss);
+  dx.final_estimation_percent = statistics::rss_sss_percent(c.est.force, last.rss);
   if (!last.ext.empty()) dx.final_pieces = report_extended_slip(c.est, fit_of(last)).pieces;
 }
 
@@ -215,9 +203,10 @@ std::string Verdict::to_text() const {
   if (!at_bound.empty())
     s << at_bound << " ended at the edge of its range (on its own the effect as defined does not "
       << "describe this record); ";
-  if (!bic_falls()) s << "BIC does not fall (" << fmt(delta_bic) << "); ";
+  if (!bic_falls()) s << "BIC does not fall (" << format_number(delta_bic, 3) << "); ";
   if (!drop_exceeds()) {
-    s << "estimation drop " << fmt(drop) << " N^2 below the required " << fmt(required) << " N^2";
+    s << "estimation drop " << format_number(drop, 3) << " N^2 below the required "
+      << format_number(required, 3) << " N^2";
     if (operator_limited)
       s << " (what one more operator buys: the baseline may be short of operators)";
     s << "; ";
@@ -230,12 +219,14 @@ std::string Verdict::to_text() const {
       s << "(validation computed for the report only)";
       break;
     case Validation::does_not_fall:
-      s << "validation error does not fall enough (" << fmt(validation_before) << " -> "
-        << fmt(validation_after) << " %, needs < " << fmt(validation_required) << " %); ";
+      s << "validation error does not fall enough (" << format_number(validation_before, 3)
+        << " -> " << format_number(validation_after, 3) << " %, needs < "
+        << format_number(validation_required, 3) << " %); ";
       break;
     case Validation::at_floor:
-      s << "the validation error is already at the noise floor (" << fmt(validation_before)
-        << " %, floor " << fmt(validation_required) << " %): nothing above it to explain; ";
+      s << "the validation error is already at the noise floor ("
+        << format_number(validation_before, 3) << " %, floor "
+        << format_number(validation_required, 3) << " %): nothing above it to explain; ";
       break;
     case Validation::falls:
       break;
@@ -285,29 +276,29 @@ std::string Finding::sentence() const {
   std::ostringstream s;
   if (!effect) {
     s << "The LuGre simulation misses the presliding hysteresis with nonlocal memory; " << elements
-      << " Maxwell Slip elements take validation error from " << fmt(validation_before) << " % to "
-      << fmt(validation_after) << " %.";
+      << " Maxwell Slip elements take validation error from " << format_number(validation_before, 3)
+      << " % to " << format_number(validation_after, 3) << " %.";
     return s.str();
   }
   const ResidualEvidence& ev = *residual;
   const char* regime = ev.sliding_rms > 1.5 * ev.presliding_rms   ? "while sliding"
                        : ev.presliding_rms > 1.5 * ev.sliding_rms ? "in presliding"
                                                                   : "in both regimes";
-  s << "The simulation is off by " << fmt(std::max(ev.sliding_rms, ev.presliding_rms)) << " N RMS "
-    << regime;
+  s << "The simulation is off by " << format_number(std::max(ev.sliding_rms, ev.presliding_rms), 3)
+    << " N RMS " << regime;
   if (ev.sliding_samples)
-    s << " (sliding speeds " << fmt(ev.sliding_speed_min) << "-" << fmt(ev.sliding_speed_max)
-      << " m/s)";
+    s << " (sliding speeds " << format_number(ev.sliding_speed_min, 3) << "-"
+      << format_number(ev.sliding_speed_max, 3) << " m/s)";
   s << "; cause: " << name() << "; extension: " << extension() << " with";
   std::vector<const ExtensionEstimate*> by_name;
   for (const auto& p : parameters) by_name.push_back(&p);
   std::stable_sort(by_name.begin(), by_name.end(),
                    [](const auto* a, const auto* b) { return a->name < b->name; });
   for (const auto* p : by_name)
-    s << " " << p->name << " = " << fmt(p->value, 4) << " " << parameter_unit(p->name);
-  s << "; validation RSS/SSS " << fmt(validation_before) << " % -> " << fmt(validation_after)
-    << " % (gain x" << fmt(validation_after > 0 ? validation_before / validation_after : 0.0)
-    << ")";
+    s << " " << p->name << " = " << format_number(p->value, 4) << " " << parameter_unit(p->name);
+  s << "; validation RSS/SSS " << format_number(validation_before, 3) << " % -> "
+    << format_number(validation_after, 3) << " % (gain x"
+    << format_number(validation_after > 0 ? validation_before / validation_after : 0.0, 3) << ")";
   if (!ambiguous_with.empty())
     s << "; ambiguous with " << ambiguous_with.front().name()
       << ", to separate: " << separating_excitation();
@@ -395,18 +386,20 @@ Json Diagnosis::to_json() const {
 std::string Diagnosis::to_table() const {
   std::ostringstream s;
   s << "Baseline " << (baseline_model ? baseline_model->type() : std::string("?"))
-    << ": validation RSS/SSS " << fmt(baseline_validation_percent, 4) << " % (estimation "
-    << fmt(baseline_estimation_percent, 4) << " %, noise floor "
-    << fmt(baseline_evidence.noise_floor_percent, 3) << " %)\n";
+    << ": validation RSS/SSS " << format_number(baseline_validation_percent, 4) << " % (estimation "
+    << format_number(baseline_estimation_percent, 4) << " %, noise floor "
+    << format_number(baseline_evidence.noise_floor_percent, 3) << " %)\n";
   if (findings.empty())
     s << "No finding: no candidate extension earned its place (the baseline explains the data "
          "as far as this record can tell).\n";
   for (std::size_t i = 0; i < findings.size(); ++i)
     s << (i + 1) << ". " << findings[i].sentence() << "\n";
-  s << "(" << fmt(seconds, 3) << " s, of which baseline " << fmt(baseline_seconds, 3) << " s)\n";
-  s << "Final model: validation RSS/SSS " << fmt(final_validation_percent, 4) << " %";
+  s << "(" << format_number(seconds, 3) << " s, of which baseline "
+    << format_number(baseline_seconds, 3) << " s)\n";
+  s << "Final model: validation RSS/SSS " << format_number(final_validation_percent, 4) << " %";
   if (final_validation_percent > 0)
-    s << " (gain x" << fmt(baseline_validation_percent / final_validation_percent) << ")";
+    s << " (gain x" << format_number(baseline_validation_percent / final_validation_percent, 3)
+      << ")";
   s << "\n";
   if (!first_round.empty()) {
     s << "Candidates of the first round (estimation %, validation %, delta BIC, verdict):\n";

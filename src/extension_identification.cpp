@@ -7,24 +7,17 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <sstream>
 
 #include "extension_families.hpp"
 #include "extension_steps.hpp"
 #include "friction/dnlrx_identification.hpp"
 #include "friction/initial_state.hpp"
 #include "friction/lg.hpp"
+#include "number_format.hpp"
 
 namespace friction {
 
 namespace extension_detail {
-
-std::string fmt(double v, int precision) {
-  std::ostringstream s;
-  s.precision(precision);
-  s << v;
-  return s.str();
-}
 
 RecordSignals record_signals(const Record& r) {
   const std::size_t n = r.size();
@@ -94,7 +87,7 @@ void judge_evidence(ExtensionIdentification& res, const std::vector<Effect>& eff
           no_evidence = true;
         else
           res.warnings.push_back("extension " + std::string(effect_name(e)) + ": " + est.name +
-                                 " = " + fmt(est.value) + " " + est.unit +
+                                 " = " + format_number(est.value, 4) + " " + est.unit +
                                  " ends at a bound of the fit (not identified by this record)");
       }
       if (testable && est.name == main && !est.at_bound && est.standard_error > 0 &&
@@ -104,7 +97,7 @@ void judge_evidence(ExtensionIdentification& res, const std::vector<Effect>& eff
     if (no_evidence) {
       res.without_evidence.push_back(e);
       res.warnings.push_back("the record gives no evidence of " + std::string(effect_name(e)) +
-                             " (its fitted value is within " + fmt(sigmas, 2) +
+                             " (its fitted value is within " + format_number(sigmas, 2) +
                              " standard errors of none, or at the bound that means none)");
     }
   }

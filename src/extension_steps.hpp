@@ -15,9 +15,6 @@
 
 namespace friction::extension_detail {
 
-/// `v` with `precision` significant digits, for messages.
-std::string fmt(double v, int precision = 4);
-
 /// Velocity and acceleration of a record at its sample instants, as simulate_extended gives the
 /// pieces (no delay).
 struct RecordSignals {

@@ -21,6 +21,7 @@
 #include "friction/covariance_report.hpp"
 #include "friction/error.hpp"
 #include "friction/motion.hpp"
+#include "sample_statistics.hpp"
 
 namespace friction {
 namespace {
@@ -30,13 +31,6 @@ constexpr double kStateBound = 1.5;                         // |u| <= 1.5, z0 = 
 constexpr double kHuge = 1e30;
 
 using Theta = std::array<double, kP>;
-
-double median(std::vector<double> v) {
-  FRICTION_ASSERT(!v.empty());
-  const std::size_t mid = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
-  return v[mid];
-}
 
 double quantile(std::vector<double> v, double q) {
   FRICTION_ASSERT(!v.empty());
@@ -274,7 +268,7 @@ void check_record(std::span<const double> time, std::span<const double> x,
 // ---------------------------------------------------------------------------------------------
 // Step 2: the global stage (NLopt).
 
-struct Box {
+struct SearchBox {
   std::vector<double> lower, upper;  // (log theta, u)
   std::vector<double> clamp(std::vector<double> v) const {
     for (std::size_t i = 0; i < v.size(); ++i) v[i] = std::clamp(v[i], lower[i], upper[i]);
@@ -282,10 +276,10 @@ struct Box {
   }
 };
 
-Box search_box(const LgStart& st) {
+SearchBox search_box(const LgStart& st) {
   const auto& p = st.parameters;
   const double vmax = st.fastest_sliding_speed;
-  Box b;
+  SearchBox b;
   auto add = [&](double lo, double hi) {
     b.lower.push_back(std::log(lo));
     b.upper.push_back(std::log(hi));
@@ -309,7 +303,7 @@ struct Point {
 };
 
 // BOBYQA (derivative-free, deterministic) from `start`: the best point it evaluated.
-Point bobyqa(const Objective& obj, const Box& box, Point start, int evaluations) {
+Point bobyqa(const Objective& obj, const SearchBox& box, Point start, int evaluations) {
   nlopt::opt opt(nlopt::LN_BOBYQA, static_cast<unsigned>(kP + 1));
   opt.set_lower_bounds(box.lower);
   opt.set_upper_bounds(box.upper);
@@ -350,7 +344,7 @@ Point bobyqa(const Objective& obj, const Box& box, Point start, int evaluations)
 // nlopt::srand, state shared by every search of the process (thread-local in Debian's build, but
 // not by contract): this one is the call's own, seeded by LgOptions::seed, so concurrent
 // identifications share nothing and each is reproducible.
-Point controlled_random_search(const Objective& obj, const Box& box, const Point& start,
+Point controlled_random_search(const Objective& obj, const SearchBox& box, const Point& start,
                                int evaluations, unsigned seed) {
   const std::size_t n = box.lower.size();
   const std::size_t size = 10 * (n + 1);
@@ -490,7 +484,7 @@ LgStart lugre_start(std::span<const double> time, std::span<const double> x,
   st.fastest_sliding_speed = weighted_quantile(speed, travel, 0.95);
   FRICTION_CHECK(st.fastest_sliding_speed > 0.0, "lugre_start: no sliding speed");
   {
-    const double level_median = median(level);
+    const double level_median = statistics::upper_median(level);
     FRICTION_CHECK(level_median > 0.0, "lugre_start: the median sliding force along the motion, ",
                    level_median, " N over ", speed.size(), " sliding samples at ",
                    st.slowest_sliding_speed, " to ", st.fastest_sliding_speed,
@@ -503,7 +497,7 @@ LgStart lugre_start(std::span<const double> time, std::span<const double> x,
   // q / (sqrt(6) Ts) of quantisation and the sqrt(2) q / Ts of white noise of deviation q).
   std::vector<double> dt(n - 1);
   for (std::size_t k = 1; k < n; ++k) dt[k - 1] = time[k] - time[k - 1];
-  st.velocity_noise = displacement_resolution(x) / median(dt);
+  st.velocity_noise = displacement_resolution(x) / statistics::upper_median(dt);
 
   auto& p = st.parameters;
   p.shape = shape;
@@ -527,12 +521,12 @@ LgStart lugre_start(std::span<const double> time, std::span<const double> x,
     if (st.viscous_from_slope) {
       std::vector<double> base(s.size());
       for (std::size_t i = 0; i < s.size(); ++i) base[i] = y[i] - line.slope * s[i];
-      p.coulomb = median(base);
+      p.coulomb = statistics::upper_median(base);
       p.viscous = line.slope;
     }
     if (!st.viscous_from_slope || !(p.coulomb > 0.0)) {
       st.viscous_from_slope = false;
-      p.coulomb = median(y);
+      p.coulomb = statistics::upper_median(y);
       p.viscous = 0.01 * p.coulomb / st.fastest_sliding_speed;
     }
     FRICTION_CHECK(p.coulomb > 0.0,
@@ -565,7 +559,8 @@ LgStart lugre_start(std::span<const double> time, std::span<const double> x,
         peak = std::max(peak, g.dir * force[t] - p.viscous * std::abs(motions[t].velocity));
       peaks.push_back(peak);
     }
-    p.static_force = std::max({median(low), median(peaks), 1.01 * p.coulomb});
+    p.static_force = std::max(
+        {statistics::upper_median(low), statistics::upper_median(peaks), 1.01 * p.coulomb});
   }
   // Fs and vs: the static curve Fc + (Fs - Fc) w(v; vs, mu = 2) fitted to the sliding levels.
   {
@@ -646,7 +641,7 @@ LgStart lugre_start(std::span<const double> time, std::span<const double> x,
     }
     if (!done) {
       if (!slopes.empty()) {
-        p.stiffness = median(slopes);
+        p.stiffness = statistics::upper_median(slopes);
       } else {
         // No resolved presliding: the exponential approach covers 95 % of 2 Fs in 3 s(0).
         const double travel = travel_at_force_fraction(x, force, 0.95);
@@ -655,8 +650,8 @@ LgStart lugre_start(std::span<const double> time, std::span<const double> x,
     }
   }
   // sigma1 without the regression: 10 % of Fs at the typical presliding speed.
-  st.presliding_speed =
-      presliding_speed.empty() ? st.slowest_sliding_speed : median(presliding_speed);
+  st.presliding_speed = presliding_speed.empty() ? st.slowest_sliding_speed
+                                                 : statistics::upper_median(presliding_speed);
   if (!(p.micro_damping > 0.0))
     p.micro_damping = 0.1 * p.static_force / std::max(st.presliding_speed, 1e-300);
   p.stribeck_exponent = 2.0;
@@ -825,7 +820,7 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
   for (double f : force) obj.sss += f * f;
   const double scale = std::sqrt(obj.sss / nd);
 
-  const Box box = search_box(st);
+  const SearchBox box = search_box(st);
   auto to_point = [&](const LuGreParameters<double>& p, double u) {
     Point pt;
     for (double t : p.to_array()) pt.v.push_back(std::log(t));

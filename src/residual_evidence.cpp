@@ -13,16 +13,11 @@
 #include "friction/extension_fit.hpp"
 #include "friction/identification.hpp"
 #include "friction/metrics.hpp"
+#include "number_format.hpp"
 
 namespace friction {
 
 namespace {
-
-std::string fmt(double v, int precision = 3) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-  return buf;
-}
 
 // Least-squares share of the residual explained by an effect's regressors beyond the nuisance
 // regressors (a Coulomb level change the threshold refit absorbs anyway).
@@ -222,11 +217,11 @@ const EffectEvidence* find_evidence(const ResidualEvidence& ev, Effect e) {
 std::string start_detail_text(const EffectEvidence& w) {
   switch (effect_info(w.effect).detail) {
     case StartDetail::velocity:
-      return fmt(w.start.velocity, 6);
+      return format_number(w.start.velocity, 6);
     case StartDetail::wavelength_phase:
-      return fmt(w.start.wavelength, 6) + " " + fmt(w.start.phase, 6);
+      return format_number(w.start.wavelength, 6) + " " + format_number(w.start.phase, 6);
     case StartDetail::shift:
-      return "shift " + fmt(w.start.shift) + " s";
+      return "shift " + format_number(w.start.shift, 3) + " s";
     case StartDetail::none:
       return "";
   }

@@ -14,6 +14,7 @@
 
 #include "friction/error.hpp"
 #include "friction/signals.hpp"
+#include "sample_statistics.hpp"
 
 namespace friction {
 
@@ -27,12 +28,6 @@ void check_record(std::span<const double> time, std::span<const double> x, std::
   for (std::size_t k = 1; k < time.size(); ++k)
     FRICTION_CHECK(time[k] > time[k - 1],
                    "sample derivatives: time must increase strictly (sample ", k, ")");
-}
-
-double median_of(std::vector<double> v) {
-  const std::size_t h = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(h), v.end());
-  return v[h];
 }
 
 // One pass of local quadratic fits with half width m; writes the fitted value at every sample (the
@@ -74,7 +69,7 @@ void local_polynomial_derivatives(std::span<const double> time, std::span<const 
   DerivativeWindows w = windows;
   std::vector<double> intervals(x.size() - 1);
   for (std::size_t k = 1; k < x.size(); ++k) intervals[k - 1] = time[k] - time[k - 1];
-  w.sampling_period = median_of(intervals);
+  w.sampling_period = statistics::upper_median(intervals);
   apply_local_derivatives<double>(time, x, w, velocity, acceleration);
 }
 
@@ -132,7 +127,7 @@ double top_band_level(const Spectrum& s) {
   for (std::size_t j = 1; j < s.p.size(); ++j)
     if (s.omega(j) >= 0.7 * std::numbers::pi) top.push_back(s.p[j]);
   const double k = 0.95 * static_cast<double>(s.segments);
-  return median_of(top) / std::pow(1 - 1 / (9 * k), 3);
+  return statistics::upper_median(top) / std::pow(1 - 1 / (9 * k), 3);
 }
 
 // A bin holds signal where its power exceeds the noise by this factor (S > N).  Below it the
@@ -295,7 +290,7 @@ DerivativeWindows choose_derivative_windows(std::span<const double> time,
   std::vector<double> intervals(n - 1);
   for (std::size_t k = 1; k < n; ++k) intervals[k - 1] = time[k] - time[k - 1];
   DerivativeWindows w;
-  const double ts = w.sampling_period = median_of(intervals);
+  const double ts = w.sampling_period = statistics::upper_median(intervals);
 
   // Segments short enough for >= 16 of them (one segment's periodogram scatters by 100 % per
   // bin), long enough to resolve the filters (128 samples at least, 4096 at most).

@@ -11,20 +11,13 @@
 #include "friction/error.hpp"
 #include "friction/metrics.hpp"
 #include "friction/sample_derivatives.hpp"
+#include "number_format.hpp"
+#include "sample_statistics.hpp"
 
 namespace friction {
 namespace {
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  const std::size_t n = v.size();
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(n / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  if (n % 2 == 1) return *mid;
-  const double upper = *mid;
-  const double lower = *std::max_element(v.begin(), mid);
-  return 0.5 * (lower + upper);
-}
+using statistics::median;
 
 // 1.4826 * median absolute deviation: the standard deviation of normal data, robustly.
 double robust_spread(const std::vector<double>& v) {
@@ -36,9 +29,7 @@ double robust_spread(const std::vector<double>& v) {
 }
 
 std::string number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
+  return format_number(v, 6);
 }
 
 }  // namespace

@@ -10,14 +10,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <random>
 #include <string>
 
 #include "truth_simulator.hpp"
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 truth::System bench_system() {
   truth::System s;
@@ -39,7 +38,7 @@ std::unique_ptr<truth::Excitation> motion(const std::string& kind, int run, doub
     p.f1 = (18 + 6 * u(gen)) / duration;
     p.f2 = p.f1 * (2.1 + 0.5 * u(gen));
     p.fe = (2.5 + u(gen)) / duration;
-    p.psi = 2 * kPi * u(gen);
+    p.psi = 2 * std::numbers::pi * u(gen);
     return truth::make_envelope(p);
   }
   if (kind == "strokes") {
@@ -72,7 +71,7 @@ std::unique_ptr<truth::Excitation> motion(const std::string& kind, int run, doub
     const double f = (3.0 / duration) * std::pow(10.0, j / 4.0 + 0.1 * u(gen));
     p.frequency.push_back(f);
     p.amplitude.push_back(60e-6 / std::pow(f * duration / 3.0, 0.7));
-    p.phase.push_back(2 * kPi * u(gen));
+    p.phase.push_back(2 * std::numbers::pi * u(gen));
   }
   return truth::make_multisine(p);
 }

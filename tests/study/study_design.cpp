@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <numbers>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -14,7 +15,6 @@ namespace truth {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kMinimumSnr = 6.0;
 
 class Rng {
@@ -65,8 +65,8 @@ MotionDraw draw_envelope(Rng& rng, double travel, double duration, double max_th
   p.f1 = rng.uniform(12, 30) / duration;
   p.f2 = p.f1 * rng.uniform(1.7, 2.9);
   p.fe = rng.uniform(1.5, 3.0) / duration;
-  p.psi = rng.uniform(0, 2 * kPi);
-  p.chi = rng.uniform(0, 2 * kPi);
+  p.psi = rng.uniform(0, 2 * std::numbers::pi);
+  p.chi = rng.uniform(0, 2 * std::numbers::pi);
   p.w1 = rng.uniform(0.55, 0.8);
   p.w2 = 1 - p.w1;
   return {make_envelope(p), false, 10};
@@ -128,7 +128,7 @@ MotionDraw draw_multisine(Rng& rng, double travel, double duration) {
     const double f = rng.log_uniform(f_lo, f_hi);
     p.frequency.push_back(f);
     p.amplitude.push_back(std::pow(f / f_lo, -tilt));
-    p.phase.push_back(rng.uniform(0, 2 * kPi));
+    p.phase.push_back(rng.uniform(0, 2 * std::numbers::pi));
     sum += p.amplitude.back();
   }
   for (double& a : p.amplitude) a *= travel / 2 / sum;
@@ -154,10 +154,10 @@ NormalProgram draw_normal(Rng& rng, double mean, double duration) {
   n.mean = mean;
   n.b1 = rng.uniform(0.1, 0.4);
   n.f1 = rng.uniform(0.7, 2.5) / duration;
-  n.p1 = rng.uniform(0, 2 * kPi);
+  n.p1 = rng.uniform(0, 2 * std::numbers::pi);
   n.b2 = n.b1 * rng.uniform(0.2, 0.6);
   n.f2 = n.f1 * rng.uniform(2.2, 4.1);
-  n.p2 = rng.uniform(0, 2 * kPi);
+  n.p2 = rng.uniform(0, 2 * std::numbers::pi);
   return n;
 }
 
@@ -255,7 +255,7 @@ std::vector<Knob> knobs_for(StudyRecord& r, Rng& rng, double v95, double a95, do
     } else if (e == "position-dependence") {
       const double lambda =
           std::max(r.travel * std::pow(10.0, rng.uniform(-1.2, -0.5)), 20 * v95 * ts);
-      fx.position = Effects::Position{0.05, lambda, rng.uniform(0, 2 * kPi)};
+      fx.position = Effects::Position{0.05, lambda, rng.uniform(0, 2 * std::numbers::pi)};
       knobs.push_back(
           {e, [](const StudyRecord& s) { return s.system.effects.position->relative_amplitude; },
            [](StudyRecord& s, double m) { s.system.effects.position->relative_amplitude = m; }, 0.0,

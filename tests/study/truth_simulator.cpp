@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <numeric>
 #include <random>
 #include <stdexcept>
@@ -10,8 +11,6 @@
 namespace truth {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 class Envelope final : public Excitation {
  public:
@@ -28,7 +27,7 @@ class Envelope final : public Excitation {
  private:
   // The d-th derivative of the envelope and of the carrier.
   double e(double t, int d) const {
-    const double w = 2 * kPi * p_.fe, th = w * t + p_.psi, s = 1 - p_.e_min;
+    const double w = 2 * std::numbers::pi * p_.fe, th = w * t + p_.psi, s = 1 - p_.e_min;
     if (d == 0) return p_.e_min + s * (1 - std::cos(th)) / 2;
     if (d == 1) return s * w * std::sin(th) / 2;
     return s * w * w * std::cos(th) / 2;
@@ -39,7 +38,7 @@ class Envelope final : public Excitation {
     return -w * w * std::sin(th);
   }
   double c(double t, int d) const {
-    const double w1 = 2 * kPi * p_.f1, w2 = 2 * kPi * p_.f2;
+    const double w1 = 2 * std::numbers::pi * p_.f1, w2 = 2 * std::numbers::pi * p_.f2;
     return p_.w1 * sin_d(w1, w1 * t, d) + p_.w2 * sin_d(w2, w2 * t + p_.chi, d);
   }
   EnvelopeProgram p_;
@@ -122,7 +121,7 @@ class Multisine final : public Excitation {
   double sum(double t, int d) const {
     double s = 0;
     for (std::size_t j = 0; j < p_.amplitude.size(); ++j) {
-      const double w = 2 * kPi * p_.frequency[j], th = w * t + p_.phase[j];
+      const double w = 2 * std::numbers::pi * p_.frequency[j], th = w * t + p_.phase[j];
       s += p_.amplitude[j] * (d == 0   ? std::sin(th)
                               : d == 1 ? w * std::cos(th)
                                        : -w * w * std::sin(th));
@@ -145,7 +144,8 @@ std::unique_ptr<Excitation> make_multisine(const MultisineProgram& p) {
 }
 
 double NormalProgram::at(double t) const {
-  return mean * (1 + b1 * std::sin(2 * kPi * f1 * t + p1) + b2 * std::sin(2 * kPi * f2 * t + p2));
+  return mean * (1 + b1 * std::sin(2 * std::numbers::pi * f1 * t + p1) +
+                 b2 * std::sin(2 * std::numbers::pi * f2 * t + p2));
 }
 
 // The level L of the header comment at motion instant tau (t = tau + D since the record's start).
@@ -161,7 +161,7 @@ static double slip_level(const System& sys, double tau, double delay, double x_a
   if (fx.drift_rate) l *= 1 + *fx.drift_rate * std::max(tau + delay, 0.0);
   if (fx.position) {
     const auto& p = *fx.position;
-    l *= 1 + p.relative_amplitude * std::sin(2 * kPi * x_abs / p.wavelength + p.phase);
+    l *= 1 + p.relative_amplitude * std::sin(2 * std::numbers::pi * x_abs / p.wavelength + p.phase);
   }
   if (fx.normal_load) l *= normal->at(tau) / normal->mean;
   return l;
