@@ -562,9 +562,12 @@ void refine_initial_state(const Data& d, Fit& best, const NlrOptions& o, bool th
     // more than one unit of log-likelihood (2 sigma^2 of RSS; d.floor_percent / N is about one
     // sigma^2 in these units): a smaller gain cannot move the parameters by a visible part of
     // their standard errors, and the polish costs a local search.
-    Workspace ws;
-    const double gain =
-        best.percent - percent_of(vp_evaluate(d, best.s, rho, Jacobian::none, ws).r);
+    // Its own workspace, freed before the local search allocates one (N x M trajectories: at 1M
+    // samples and M = 4 the two together were identify's peak).
+    const double gain = [&] {
+      Workspace ws;
+      return best.percent - percent_of(vp_evaluate(d, best.s, rho, Jacobian::none, ws).r);
+    }();
     if (!(gain > 2.0 * d.floor_percent / static_cast<double>(d.y.size()))) return;
     const Fit f = local_search(d, best.s, rho, o, best.percent);
     rep.starts.push_back(start_log(d, thorough ? "initial-state" : "initial-state-quick", thr, f));
