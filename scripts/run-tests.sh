@@ -32,12 +32,7 @@ CTEST_JOBS=2
 # clean-clone CI run of 87e59bb); the TSan pass 169 s and 43 s against 237 s and 31 s.  (While
 # the fits were slower, the -O1 tests ran longer than the build saved.)
 SANITIZER_OPT_FLAGS="-O1 -g1 -DNDEBUG"
-# The sanitizer builds compile the library and the CLI as unity builds, 16 sources per
-# translation unit: Eigen, Ceres and the library's headers are parsed and their templates
-# instantiated once per batch instead of once per source.  Two cores, c959abb: the ASan+UBSan build
-# 300 s -> 176 s (the library's compile 291 -> 151 CPU-s), the TSan build 80 s.  The Release build
-# stays one source per object, so that a change to one source recompiles one object.
-SANITIZER_UNITY=(-DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=16)
+# Every build here is a unity build (FRICTION_UNITY_BUILD, CMakeLists.txt says what it saves).
 
 # run_ctest DIR [extra ctest arguments...]
 run_ctest() {
@@ -47,7 +42,8 @@ run_ctest() {
   ctest --test-dir "$dir" --output-on-failure -j "$CTEST_JOBS" "$@"
 }
 
-# Every compile command of a source under src/ apps/ tests/ bench/ must carry the warning flags.
+# Every compile command of a source under src/ apps/ tests/ bench/, or of a unity batch of them,
+# must carry the warning flags.
 check_warning_flags() {
   say "Checking warning flags of the project's own targets"
   if [[ ! -f "$FRICTION_BUILD_DIR/build.ninja" ]]; then
@@ -56,7 +52,7 @@ check_warning_flags() {
   fi
   local commands bad n
   commands=$(ninja -C "$FRICTION_BUILD_DIR" -t commands |
-    grep -E -- ' -c [^ ]*/(src|apps|tests|bench)/[^ ]*\.cpp' || true)
+    grep -E -- ' -c [^ ]*(/(src|apps|tests|bench)/[^ ]*\.cpp|/Unity/unity_[0-9]+_cxx\.cxx)' || true)
   n=$(grep -c . <<<"$commands" || true)
   ((n > 0)) || die "no compile commands found for the project's sources in $FRICTION_BUILD_DIR"
   local flag
@@ -106,7 +102,7 @@ sanitizer_pass() {
   fi
   configure_and_build "$ASAN_BUILD_DIR" -DFRICTION_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$SANITIZER_OPT_FLAGS" -DFRICTION_BUILD_BENCHMARKS=OFF \
-    -DFRICTION_BUILD_LONG_TESTS=OFF "${SANITIZER_UNITY[@]}"
+    -DFRICTION_BUILD_LONG_TESTS=OFF
   ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:detect_stack_use_after_return=1}" \
     UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}" \
     run_ctest "$ASAN_BUILD_DIR" --label-exclude long
@@ -120,7 +116,7 @@ thread_sanitizer_pass() {
   if [[ ! -f "$TSAN_BUILD_DIR/CMakeCache.txt" ]]; then
     cmake -S "$FRICTION_ROOT" -B "$TSAN_BUILD_DIR" -G Ninja -DFRICTION_TSAN=ON \
       -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$SANITIZER_OPT_FLAGS" \
-      -DFRICTION_BUILD_BENCHMARKS=OFF -DFRICTION_BUILD_LONG_TESTS=OFF "${SANITIZER_UNITY[@]}"
+      -DFRICTION_BUILD_BENCHMARKS=OFF -DFRICTION_BUILD_LONG_TESTS=OFF
   fi
   say "Building the concurrency tests in $TSAN_BUILD_DIR with $FRICTION_JOBS jobs"
   cmake --build "$TSAN_BUILD_DIR" --parallel "$FRICTION_JOBS" \
