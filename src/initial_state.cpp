@@ -301,7 +301,7 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
       {
         for (Eigen::Index i = 0; i < mi; ++i)
           single[static_cast<std::size_t>(i)].contribution(best[static_cast<std::size_t>(i)],
-                                                          contribution.col(i), false);
+                                                           contribution.col(i), false);
         total = contribution.rowwise().sum();
         for (int sweep = 0; sweep < sweeps; ++sweep) {
           bool moved = false;
@@ -331,7 +331,7 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
         jacobian.resize(y.size(), mi);
         for (Eigen::Index i = 0; i < mi; ++i)
           single[static_cast<std::size_t>(i)].sensitivity(best[static_cast<std::size_t>(i)],
-                                                         jacobian.col(i));
+                                                          jacobian.col(i));
         r = y - force;
         Eigen::VectorXd lo(mi), hi(mi);
         for (Eigen::Index i = 0; i < mi; ++i) {
@@ -399,8 +399,8 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
   // saturates.  Along that line the cost has minima that neither the coordinate steps (one
   // operator at a time) nor Gauss-Newton (which stops at a kink) nor small perturbations leave:
   // on random records the estimate ended above the true state's cost, by up to 634x, with two
-  // operators traded that way (test_initial_state).  For each pair the line through the winner is scanned across the box and
-  // its best point refined.
+  // operators traded that way (test_initial_state).  For each pair the line through the winner is
+  // scanned across the box and its best point refined.
   if (options.valley_points > 1 && m > 1) {
     const Eigen::VectorXd theta = filter.rowwise().sum();
     const double theta_scale = theta.cwiseAbs().maxCoeff();

@@ -5,6 +5,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "../number_format.hpp"
 #include "commands.hpp"
 #include "friction/atomic_file.hpp"
 #include "friction/diagnose.hpp"
@@ -25,12 +26,6 @@ struct DiagnoseCliOptions {
   InputOptions input;
   OutputOptions output;
 };
-
-std::string num(double v, int precision = 4) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-  return buf;
-}
 
 // Residual of the baseline and of the final model against velocity on the validation record: two
 // scatter plots side by side (SVG, no dependencies).
@@ -57,16 +52,16 @@ std::string residual_svg(const Record& val, const std::vector<double>& before,
       << "\" height=\"" << h - 1.5 * pad << "\" fill=\"none\" stroke=\"#888\"/>\n";
     s << "<text x=\"" << ox + pad << "\" y=\"" << pad / 2 - 6 << "\">"
       << (panel == 0 ? "baseline" : "final") << " residual [N] vs velocity [m/s], RSS/SSS "
-      << num(panel == 0 ? before_pct : after_pct, 3) << " %</text>\n";
-    s << "<text x=\"" << ox + pad << "\" y=\"" << h - 4 << "\">|v| max " << num(vmax, 3)
-      << " m/s, |e| max " << num(emax, 3) << " N</text>\n";
+      << format_number(panel == 0 ? before_pct : after_pct, 3) << " %</text>\n";
+    s << "<text x=\"" << ox + pad << "\" y=\"" << h - 4 << "\">|v| max " << format_number(vmax, 3)
+      << " m/s, |e| max " << format_number(emax, 3) << " N</text>\n";
     const double cx = ox + pad + (w - 1.5 * pad) / 2, cy = pad / 2 + (h - 1.5 * pad) / 2;
     s << "<line x1=\"" << ox + pad << "\" y1=\"" << cy << "\" x2=\"" << ox + w - pad / 2
       << "\" y2=\"" << cy << "\" stroke=\"#ccc\"/>\n";
     for (std::size_t k = 0; k < n; k += stride) {
       const double px = cx + v[k] / vmax * (w - 1.5 * pad) / 2;
       const double py = cy - (val.force[k] - sim[k]) / emax * (h - 1.5 * pad) / 2;
-      s << "<circle cx=\"" << num(px, 6) << "\" cy=\"" << num(py, 6)
+      s << "<circle cx=\"" << format_number(px, 6) << "\" cy=\"" << format_number(py, 6)
         << "\" r=\"1\" fill=\"#1f77b4\" fill-opacity=\"0.5\"/>\n";
     }
   }
@@ -138,8 +133,8 @@ int run_diagnose(const DiagnoseCliOptions& o) {
       throw DataError(o.data, 0, 0, "too few samples to hold out for validation; give --validate");
     est = all.slice(0, n_est);
     val = all.slice(n_est, n);
-    warnings.push_back("no --validate given: the last " + num(100 * o.holdout, 3) + " % of " +
-                       o.data + " (from t = " + num(val.time.front(), 6) +
+    warnings.push_back("no --validate given: the last " + format_number(100 * o.holdout, 3) +
+                       " % of " + o.data + " (from t = " + format_number(val.time.front(), 6) +
                        " s) is held out for validation");
   }
   DiagnoseOptions opt;
@@ -189,7 +184,7 @@ int run_diagnose(const DiagnoseCliOptions& o) {
   std::ostringstream os;
   os << "diagnose: estimation " << o.data << " (" << est.size() << " samples), validation "
      << (o.validate.empty() ? "held out" : o.validate) << " (" << val.size() << " samples), "
-     << num(d.seconds, 3) << " s\n"
+     << format_number(d.seconds, 3) << " s\n"
      << d.to_table();
   if (!doc["warnings"].empty()) os << doc["warnings"].size() << " warning(s), on stderr\n";
   emit_table(o.output, os.str(), doc);

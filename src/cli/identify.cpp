@@ -9,6 +9,7 @@
 #include <optional>
 #include <sstream>
 
+#include "../number_format.hpp"
 #include "../parallel_for.hpp"
 #include "commands.hpp"
 #include "friction/methods.hpp"
@@ -48,12 +49,6 @@ void add_method_options(CLI::App& c, MethodCliOptions& m) {
       "--no-global", m.no_global,
       "Skip the global stages: NLR's threshold moves, LG's NLopt search (faster, less robust)");
   c.add_option("--seed", m.seed, "Seed of the global stages")->capture_default_str();
-}
-
-std::string fmt(double v, int precision = 4) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-  return buf;
 }
 
 std::string fixed(double v, int decimals = 3) {
@@ -112,7 +107,7 @@ Records load_records(const std::string& data, const std::string& validate, doubl
     rs.validation = all.slice(n_est, n);
     rs.has_validation = true;
     rs.warnings.push_back("no --validate given: the last " + fixed(100 * holdout, 0) + " % of " +
-                          data + " (from t = " + fmt(rs.validation.time.front(), 6) +
+                          data + " (from t = " + format_number(rs.validation.time.front(), 6) +
                           " s) is held out for validation");
   } else {
     rs.estimation = std::move(all);
@@ -131,9 +126,9 @@ Json validation_json(const Validation& v) {
 }
 
 void print_errors(std::ostream& os, const char* label, const ErrorMetrics& e, double floor) {
-  os << "  " << label << ": RSS/SSS " << fmt(e.rss_sss_percent) << " %, RMS " << fmt(e.rms)
-     << " N, max |e| " << fmt(e.max_abs) << " N, R^2 " << fixed(e.r_squared, 5) << " (noise floor "
-     << fmt(floor) << " %)\n";
+  os << "  " << label << ": RSS/SSS " << format_number(e.rss_sss_percent, 4) << " %, RMS "
+     << format_number(e.rms, 4) << " N, max |e| " << format_number(e.max_abs, 4) << " N, R^2 "
+     << fixed(e.r_squared, 5) << " (noise floor " << format_number(floor, 4) << " %)\n";
 }
 
 void print_report(std::ostream& os, const IdentifiedModel& m) {
@@ -231,8 +226,8 @@ int run_identify(const IdentifyOptions& o) {
     for (std::size_t i = 0; i < x["order"].size(); ++i)
       os << (i ? ", " : "") << x["order"][i].get<std::string>();
     os << " (base " << x["base"].get<std::string>() << "): estimation RSS/SSS "
-       << fmt(x["estimation_before_percent"].get<double>()) << " % without them, "
-       << fmt(x["estimation_after_percent"].get<double>()) << " % with them\n";
+       << format_number(x["estimation_before_percent"].get<double>(), 4) << " % without them, "
+       << format_number(x["estimation_after_percent"].get<double>(), 4) << " % with them\n";
     for (const auto& name : x["no_evidence"])
       os << "  the record gives no evidence of " << name.get<std::string>() << "\n";
   }
@@ -443,8 +438,9 @@ int run_compare(const CompareOptions& o) {
   for (const auto& row : doc["methods"]) {
     if (!row.contains("validation")) continue;
     os << "\nnoise floor of the validation record: RSS/SSS "
-       << fmt(row["validation"]["noise"]["floor_percent"].get<double>()) << " % (force noise "
-       << fmt(row["validation"]["noise"]["sigma"].get<double>()) << " N)\n";
+       << format_number(row["validation"]["noise"]["floor_percent"].get<double>(), 4)
+       << " % (force noise " << format_number(row["validation"]["noise"]["sigma"].get<double>(), 4)
+       << " N)\n";
     break;
   }
   if (!doc["warnings"].empty()) os << doc["warnings"].size() << " warning(s), on stderr\n";
