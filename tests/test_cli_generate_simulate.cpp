@@ -13,6 +13,7 @@
 #include "friction/csv.hpp"
 #include "support/cli_runner.hpp"
 
+namespace test_cli_generate_simulate {
 namespace {
 
 using friction::testing::run_cli;
@@ -210,3 +211,4 @@ TEST(CliSimulate, AnOutputThatCannotBeWrittenIsAnError) {
 }
 
 }  // namespace
+}  // namespace test_cli_generate_simulate

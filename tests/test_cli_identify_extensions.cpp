@@ -12,6 +12,7 @@
 #include "diagnose_support.hpp"
 #include "support/cli_runner.hpp"
 
+namespace test_cli_identify_extensions {
 namespace {
 
 using friction::testing::run_cli;
@@ -119,3 +120,4 @@ TEST(CliIdentifyExtensions, PiecesTheBaseAlreadyHasAreRefused) {
 }
 
 }  // namespace
+}  // namespace test_cli_identify_extensions

@@ -14,6 +14,7 @@
 
 #include "../src/compressed_cost.hpp"
 
+namespace test_compressed_cost {
 namespace {
 
 using friction::detail::CompressedCost;
@@ -167,3 +168,4 @@ TEST(CompressedCost, RowBlocksKeepTheSingularValues) {
 }
 
 }  // namespace
+}  // namespace test_compressed_cost

@@ -21,6 +21,7 @@
 #include "friction/methods.hpp"
 
 namespace friction {
+namespace test_concurrency {
 namespace {
 
 // Every number of the model and the validation error, printed exactly (%a).
@@ -81,4 +82,5 @@ TEST(Concurrency, TheThreeMethodsOnConcurrentThreadsGiveTheirSequentialResults) 
 }
 
 }  // namespace
+}  // namespace test_concurrency
 }  // namespace friction

@@ -8,6 +8,7 @@
 
 #include "friction/covariance_report.hpp"
 
+namespace test_covariance_report {
 namespace {
 
 using friction::CovarianceParameter;
@@ -87,3 +88,4 @@ TEST(CovarianceReport, NoCovarianceGivesNoErrorsAndOneWarning) {
 }
 
 }  // namespace
+}  // namespace test_covariance_report

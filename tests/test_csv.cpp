@@ -23,6 +23,7 @@ using friction::ForceSign;
 using friction::ReadOptions;
 using friction::Record;
 
+namespace test_csv {
 namespace {
 
 // A plain record of `n` rows: time = 0.01 k, x = 1e-3 sin(0.5 k), F = 0.5 cos(0.5 k) (so F·v > 0).
@@ -596,3 +597,4 @@ TEST(AtomicFile, MissingDirectoryIsFileError) {
 }
 
 }  // namespace
+}  // namespace test_csv

@@ -23,6 +23,7 @@
 #include "truth_records.hpp"
 
 namespace friction {
+namespace test_delay_stepping {
 namespace {
 
 using testing::record_of;
@@ -67,4 +68,5 @@ TEST(DelayFindings, TrueDelaysAreStillNamed) {
 }
 
 }  // namespace
+}  // namespace test_delay_stepping
 }  // namespace friction

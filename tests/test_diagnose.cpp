@@ -10,6 +10,7 @@
 #include "support/cli_runner.hpp"
 
 namespace friction::testing {
+namespace test_diagnose {
 namespace {
 
 MaxwellSlipParameters<double> truth_parameters() {
@@ -237,4 +238,5 @@ TEST(DiagnoseCli, JsonDocumentFollowsTheContract) {
 }
 
 }  // namespace
+}  // namespace test_diagnose
 }  // namespace friction::testing

@@ -17,6 +17,7 @@
 #include "friction/diagnose.hpp"
 
 namespace friction::testing {
+namespace test_diagnose_effects {
 namespace {
 
 constexpr double kSigma = 2e-3;         // N, force noise
@@ -249,4 +250,5 @@ TEST(FalseFindings, ABaselineOneOperatorShortRarelyBuysAFinding) {
 }
 
 }  // namespace
+}  // namespace test_diagnose_effects
 }  // namespace friction::testing

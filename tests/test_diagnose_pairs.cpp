@@ -17,6 +17,7 @@
 #include "friction/diagnose.hpp"
 
 namespace friction::testing {
+namespace test_diagnose_pairs {
 namespace {
 
 constexpr double kSigma = 2e-3;         // N, force noise
@@ -260,4 +261,5 @@ TEST(Ambiguity, ViscousAtOneSpeedIsFlaggedAndAtFiveSpeedsIsNot) {
 }
 
 }  // namespace
+}  // namespace test_diagnose_pairs
 }  // namespace friction::testing

@@ -11,6 +11,7 @@
 #include "friction/simulate.hpp"
 #include "support/model_properties.hpp"
 
+namespace test_dnlrx {
 namespace {
 
 using friction::Dnlrx;
@@ -167,3 +168,4 @@ TEST(Dnlrx, JetDerivativesMatchFiniteDifferencesAndStepDoesNotAllocate) {
 }
 
 }  // namespace
+}  // namespace test_dnlrx

@@ -12,6 +12,7 @@
 #include "friction/nlr.hpp"
 #include "identification_fixtures.hpp"
 
+namespace test_dnlrx_identification {
 namespace {
 
 using namespace friction;
@@ -139,8 +140,6 @@ TEST(DnlrxIdentification, FreeRunOfAMaxwellSlipModelMatchesTheMaxwellSlipFreeRun
   EXPECT_NEAR(ms.errors.rss_sss_percent, dn.errors.rss_sss_percent, 1e-12);
 }
 
-}  // namespace
-
 // The result of DNLRX from a given NLR report (what compare does: DnlrxOptions::nlr_report) and
 // from its own NLR run, compared field by field.
 void expect_same_dnlrx(const DnlrxResult& a, const DnlrxResult& b) {
@@ -227,3 +226,6 @@ TEST(DnlrxIdentification, ReusingNlrsOrderSelectionGivesTheSameModel) {
     expect_same_dnlrx(dnlrx(3, 0, &n.report), dnlrx(3, 0, nullptr));
   }
 }
+
+}  // namespace
+}  // namespace test_dnlrx_identification

@@ -11,6 +11,7 @@
 #include "friction/effect_table.hpp"
 #include "friction/extensions.hpp"
 
+namespace test_effect_table {
 namespace {
 
 using friction::Effect;
@@ -109,3 +110,4 @@ TEST(EffectTable, LagStartedWithoutAVelocityPieceBringsAViscousCompanion) {
 }
 
 }  // namespace
+}  // namespace test_effect_table

@@ -9,6 +9,7 @@
 #include "friction/error.hpp"
 #include "friction/excitation.hpp"
 
+namespace test_excitation {
 namespace {
 
 using friction::ExcitationKind;
@@ -134,3 +135,4 @@ TEST(Excitation, RejectsBadOptions) {
 }
 
 }  // namespace
+}  // namespace test_excitation

@@ -17,6 +17,7 @@
 #include "friction/methods.hpp"
 
 namespace friction {
+namespace test_extension_identification {
 namespace {
 
 using testing::Excitation;
@@ -321,9 +322,11 @@ TEST(ExtensionIdentification, ParsesNamesAndCommaLists) {
 }
 
 }  // namespace
+}  // namespace test_extension_identification
 }  // namespace friction
 
 namespace friction {
+namespace test_extension_identification {
 namespace {
 
 // The measurement behind the choice of ExtensionOrder::sequential (extension_identification.hpp):
@@ -395,4 +398,5 @@ TEST(ExtensionIdentification, DISABLED_MeasureSequentialAgainstJoint) {
 }
 
 }  // namespace
+}  // namespace test_extension_identification
 }  // namespace friction

@@ -16,6 +16,7 @@
 #include "friction/static_friction.hpp"
 #include "support/model_properties.hpp"
 
+namespace test_extensions {
 namespace {
 
 using friction::Effect;
@@ -500,3 +501,4 @@ TEST(ExtendedSlipFit, StructuredJacobianIsTheWholeModels) {
 }
 
 }  // namespace
+}  // namespace test_extensions

@@ -9,6 +9,7 @@
 #include "friction/simulate.hpp"
 #include "support/model_properties.hpp"
 
+namespace test_gms {
 namespace {
 
 using friction::Gms;
@@ -162,3 +163,4 @@ TEST(Gms, JetDerivativesMatchFiniteDifferencesAndStepDoesNotAllocate) {
 }
 
 }  // namespace
+}  // namespace test_gms

@@ -29,6 +29,7 @@
 
 #include "support/cli_runner.hpp"
 
+namespace test_golden_outputs {
 namespace {
 
 using friction::testing::read_text;
@@ -185,3 +186,4 @@ TEST_F(GoldenOutputsOnTribometer, IdentifyMaxwellSlipWithNormalLoadAsymmetryAndO
 }
 
 }  // namespace
+}  // namespace test_golden_outputs

@@ -24,6 +24,7 @@
 #include "truth_simulator.hpp"
 
 namespace friction {
+namespace test_initial_level {
 namespace {
 
 struct Case {
@@ -154,4 +155,5 @@ TEST(InitialLevel, TheEstimatedStateHoldsTheForceBeyondTheNominalLimits) {
 }
 
 }  // namespace
+}  // namespace test_initial_level
 }  // namespace friction

@@ -12,6 +12,7 @@
 #include "friction/initial_state.hpp"
 #include "identification_fixtures.hpp"
 
+namespace test_initial_state {
 namespace {
 
 using namespace friction;
@@ -234,3 +235,4 @@ TEST(InitialState, RejectsMismatchedInput) {
 }
 
 }  // namespace
+}  // namespace test_initial_state

@@ -19,6 +19,7 @@
 #include "friction/simulate.hpp"
 #include "identification_fixtures.hpp"
 
+namespace test_lg {
 namespace {
 
 using namespace friction;
@@ -441,3 +442,4 @@ TEST(Lg, UnusableInputsAreRefused) {
 }
 
 }  // namespace
+}  // namespace test_lg

@@ -13,6 +13,7 @@
 #include "friction/simulate.hpp"
 #include "support/model_properties.hpp"
 
+namespace test_lugre {
 namespace {
 
 using friction::CvodesMethod;
@@ -487,3 +488,4 @@ TEST(Differentiator, RejectsBadInput) {
 }
 
 }  // namespace
+}  // namespace test_lugre

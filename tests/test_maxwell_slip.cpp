@@ -8,6 +8,7 @@
 #include "friction/simulate.hpp"
 #include "support/model_properties.hpp"
 
+namespace test_maxwell_slip {
 namespace {
 
 using friction::MaxwellSlip;
@@ -114,3 +115,4 @@ TEST(MaxwellSlip, JetDerivativesMatchFiniteDifferencesAndStepDoesNotAllocate) {
 }
 
 }  // namespace
+}  // namespace test_maxwell_slip

@@ -47,6 +47,7 @@
 #include "friction/model_io.hpp"
 #include "method_studies_support.hpp"
 
+namespace test_method_studies {
 namespace {
 
 // The text with every decimal or exponent number ([-+]digits followed by '.' or 'e') replaced by
@@ -415,3 +416,4 @@ TEST(MethodStudies, TribometerRecordAllMethodsRun) {
 }
 
 }  // namespace
+}  // namespace test_method_studies

@@ -7,6 +7,7 @@
 
 #include "friction/metrics.hpp"
 
+namespace test_metrics {
 namespace {
 
 using friction::compute_errors;
@@ -74,3 +75,4 @@ TEST(Metrics, WhiteNoiseSigmaOnSmoothAndKinkedSignals) {
 }
 
 }  // namespace
+}  // namespace test_metrics

@@ -6,6 +6,7 @@
 #include "friction/excitation.hpp"
 #include "friction/model_io.hpp"
 
+namespace test_model_io {
 namespace {
 
 using friction::AnyModel;
@@ -96,3 +97,4 @@ TEST(ModelIo, EffectSpecificationsSetTheNamedParameters) {
 }
 
 }  // namespace
+}  // namespace test_model_io

@@ -13,6 +13,7 @@
 #include "friction/nlr.hpp"
 #include "identification_fixtures.hpp"
 
+namespace test_nlr {
 namespace {
 
 using namespace friction;
@@ -326,3 +327,4 @@ TEST(Nlr, RejectsUnusableRecords) {
 }
 
 }  // namespace
+}  // namespace test_nlr

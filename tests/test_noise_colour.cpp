@@ -14,6 +14,7 @@
 #include "friction/noise_colour.hpp"
 
 namespace friction::testing {
+namespace test_noise_colour {
 namespace {
 
 TEST(NoiseColour, LagCorrelationsOfAnAr1Series) {
@@ -88,4 +89,5 @@ TEST(NoiseColour, SandwichMatchesTheSpreadOfEstimates) {
 }
 
 }  // namespace
+}  // namespace test_noise_colour
 }  // namespace friction::testing

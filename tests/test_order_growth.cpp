@@ -28,6 +28,7 @@
 #include "truth_records.hpp"
 
 namespace friction {
+namespace test_order_growth {
 namespace {
 
 using testing::record_of;
@@ -97,4 +98,5 @@ TEST(OrderGrowth, TheStudyRecordThatLedHereReachesTheFloor) {
 }
 
 }  // namespace
+}  // namespace test_order_growth
 }  // namespace friction

@@ -6,6 +6,7 @@
 #include "position_profile_cases.hpp"
 
 namespace friction {
+namespace test_position_profile {
 namespace {
 
 TEST(PositionProfile, ManyPeriodsOverTheTravelStartInTheRightBasin) {
@@ -13,4 +14,5 @@ TEST(PositionProfile, ManyPeriodsOverTheTravelStartInTheRightBasin) {
 }
 
 }  // namespace
+}  // namespace test_position_profile
 }  // namespace friction

@@ -4,6 +4,7 @@
 #include "position_profile_cases.hpp"
 
 namespace friction {
+namespace test_position_profile_study {
 namespace {
 
 TEST(PositionProfileStudy, ManyPeriodsOverTheTravelStartInTheRightBasin) {
@@ -11,4 +12,5 @@ TEST(PositionProfileStudy, ManyPeriodsOverTheTravelStartInTheRightBasin) {
 }
 
 }  // namespace
+}  // namespace test_position_profile_study
 }  // namespace friction

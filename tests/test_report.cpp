@@ -19,6 +19,7 @@
 #include "report_fixtures.hpp"
 #include "support/cli_runner.hpp"
 
+namespace test_report {
 namespace {
 
 using namespace friction::report;
@@ -439,3 +440,4 @@ TEST(ReportCli, ValidateWritesAReportAndABadReportPathWritesNothing) {
 }
 
 }  // namespace
+}  // namespace test_report

@@ -16,6 +16,7 @@
 #include "friction/sample_derivatives.hpp"
 
 namespace friction::testing {
+namespace test_sample_derivative_studies {
 namespace {
 
 double rms_error(const std::vector<double>& estimate, const std::vector<double>& exact) {
@@ -86,4 +87,5 @@ TEST(SampleDerivatives, WithinOneAndAHalfOfTheBestFixedWindowOnAnalogRecords) {
 }
 
 }  // namespace
+}  // namespace test_sample_derivative_studies
 }  // namespace friction::testing

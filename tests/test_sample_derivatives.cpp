@@ -12,6 +12,7 @@
 #include "friction/sample_derivatives.hpp"
 
 namespace friction::testing {
+namespace test_sample_derivatives {
 namespace {
 
 // A term fitted by least squares on an estimated signal: sum(F s_hat) / sum(s_hat^2) for a force
@@ -102,4 +103,5 @@ TEST(SampleDerivatives, InertiaSurvivesQuantisation) {
 }
 
 }  // namespace
+}  // namespace test_sample_derivatives
 }  // namespace friction::testing

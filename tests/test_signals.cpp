@@ -16,6 +16,7 @@
 #include "friction/signals.hpp"
 #include "friction/simulate.hpp"
 
+namespace test_signals {
 namespace {
 
 using friction::ConditioningOptions;
@@ -336,3 +337,4 @@ TEST(Tribometer, ReadsTheReciprocatingRecord) {
 }
 
 }  // namespace
+}  // namespace test_signals

@@ -10,6 +10,7 @@
 #include "friction/stribeck.hpp"
 #include "support/model_properties.hpp"
 
+namespace test_static_friction {
 namespace {
 
 using friction::StaticFriction;
@@ -88,3 +89,4 @@ TEST(StaticFriction, JetDerivativesMatchFiniteDifferencesAndStepDoesNotAllocate)
 }
 
 }  // namespace
+}  // namespace test_static_friction

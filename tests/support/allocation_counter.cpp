@@ -19,8 +19,11 @@ std::size_t friction::testing::allocations_so_far() noexcept {
   return g_allocations.load(std::memory_order_relaxed);
 }
 
-// Replacing the global allocation functions is how the counter sees every `new`; the aligned and
-// nothrow forms fall back on these in libstdc++.
+// Replacing the global allocation functions is how the counter sees every `new`.  libstdc++'s own
+// nothrow forms would fall back on these, but a sanitizer runtime defines every form itself: left
+// to it, a nothrow `new` (std::stable_sort's temporary buffer) is ASan's and the sized `delete`
+// that frees it is ours, a mismatch ASan reports.  So the nothrow forms are replaced as well.  The
+// aligned forms are left alone, new and delete alike, so they stay a matched pair (and uncounted).
 void* operator new(std::size_t size) {
   return counted_alloc(size);
 }
@@ -37,5 +40,25 @@ void operator delete(void* p, std::size_t) noexcept {
   std::free(p);
 }
 void operator delete[](void* p, std::size_t) noexcept {
+  std::free(p);
+}
+void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
+  try {
+    return counted_alloc(size);
+  } catch (...) {
+    return nullptr;
+  }
+}
+void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
+  try {
+    return counted_alloc(size);
+  } catch (...) {
+    return nullptr;
+  }
+}
+void operator delete(void* p, const std::nothrow_t&) noexcept {
+  std::free(p);
+}
+void operator delete[](void* p, const std::nothrow_t&) noexcept {
   std::free(p);
 }
