@@ -482,9 +482,11 @@ std::vector<double> estimate_family_state(const Record& r, const Family& family,
 // s^2 (J^T J)^-1, the Gauss-Newton form, when the residual is white), s^2 = RSS / (N - p), over
 // the free columns of both blocks, J from automatic derivatives through the family's cost.  With
 // coloured force noise the white form's intervals were 2-6 times too narrow (AR(1) at phi
-// 0.8-0.95 on the discovery study's records).  Columns are scaled to unit norm before the rank
-// test (reciprocal condition number below 1e-12: rank deficient), which makes it a property of
-// the model, not of the units.
+// 0.8-0.95 on the discovery study's records).  Each variance is then raised to the block scores'
+// where those are larger: what the model's structure misses leaks into the parameters as well as
+// the noise (noise_colour.hpp, Misfit as well as noise).  Columns are scaled to unit norm before
+// the rank test (reciprocal condition number below 1e-12: rank deficient), which makes it a
+// property of the model, not of the units.
 
 struct FreeCovariance {
   Eigen::MatrixXd covariance;        // over `columns`
@@ -587,14 +589,20 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
       eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
   out.colour = residual_colour(residual);
   ColouredGram gram(p, out.colour.phi);
+  BlockScores scores(p, score_block_length(n, out.colour));
   std::vector<double> row(p);
   for (std::size_t k = 0; k < n; ++k) {
     for (std::size_t q = 0; q < p; ++q)
       row[q] = Js(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(q));
     gram.add(row);
+    scores.add(row, residual[k]);
   }
-  out.covariance = d.cwiseInverse().asDiagonal() * sandwich_covariance(Hinv, gram.coloured(), s2) *
-                   d.cwiseInverse().asDiagonal();
+  // The larger of the AR(1) sandwich and the block scores' (noise_colour.hpp: misfit as well as
+  // noise).
+  Eigen::MatrixXd scaled = sandwich_covariance(Hinv, gram.coloured(), s2);
+  if (scores.blocks() >= kMinimumScoreBlocks)
+    scaled = larger_variances(scaled, block_sandwich_covariance(Hinv, scores, n, rank));
+  out.covariance = d.cwiseInverse().asDiagonal() * scaled * d.cwiseInverse().asDiagonal();
   out.scale = d;
   out.null_directions.resize(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(null.size()));
   for (std::size_t j = 0; j < null.size(); ++j)

@@ -60,4 +60,72 @@ Eigen::MatrixXd sandwich_covariance(const Eigen::MatrixXd& gram_inverse,
   return residual_variance * gram_inverse * coloured * gram_inverse;
 }
 
+std::size_t score_block_length(std::size_t n, const ResidualColour& c) {
+  const auto root = static_cast<std::size_t>(std::floor(std::sqrt(static_cast<double>(n))));
+  const auto colour = static_cast<std::size_t>(std::ceil(5.0 * c.slow_inflation()));
+  return std::max<std::size_t>({root, colour, 1});
+}
+
+BlockScores::BlockScores(std::size_t parameters, std::size_t block_length)
+    : length_(block_length),
+      score_(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(parameters))),
+      meat_(Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(parameters),
+                                  static_cast<Eigen::Index>(parameters))) {
+  FRICTION_CHECK(block_length > 0, "BlockScores: a block of 0 samples");
+}
+
+void BlockScores::add(std::span<const double> row, double residual) {
+  FRICTION_CHECK(row.size() == static_cast<std::size_t>(score_.size()), "BlockScores: row of ",
+                 row.size(), " values, expected ", score_.size());
+  score_ += residual * Eigen::Map<const Eigen::VectorXd>(row.data(), score_.size());
+  if (++in_block_ == length_) {
+    meat_.noalias() += score_ * score_.transpose();
+    score_.setZero();
+    in_block_ = 0;
+    ++blocks_;
+  }
+}
+
+Eigen::MatrixXd BlockScores::meat() const {
+  return in_block_ > 0 ? Eigen::MatrixXd(meat_ + score_ * score_.transpose()) : meat_;
+}
+
+std::size_t BlockScores::blocks() const {
+  return blocks_ + (in_block_ > 0 ? 1 : 0);
+}
+
+Eigen::MatrixXd block_sandwich_covariance(const Eigen::MatrixXd& gram_inverse,
+                                          const BlockScores& scores, std::size_t n,
+                                          std::size_t rank) {
+  const auto b = static_cast<double>(scores.blocks());
+  FRICTION_CHECK(b >= 2 && n > rank, "block_sandwich_covariance: ", scores.blocks(), " blocks, ", n,
+                 " samples, rank ", rank);
+  const double factor = b / (b - 1) * static_cast<double>(n - 1) / static_cast<double>(n - rank);
+  return factor * gram_inverse * scores.meat() * gram_inverse;
+}
+
+Eigen::MatrixXd larger_variances(const Eigen::MatrixXd& model, const Eigen::MatrixXd& robust) {
+  FRICTION_CHECK(model.rows() == robust.rows() && model.cols() == robust.cols() &&
+                     model.rows() == model.cols(),
+                 "larger_variances: ", model.rows(), "x", model.cols(), " and ", robust.rows(), "x",
+                 robust.cols());
+  const Eigen::Index p = model.rows();
+  Eigen::VectorXd s(p), m(p);
+  for (Eigen::Index q = 0; q < p; ++q) {
+    m(q) = std::sqrt(std::max(model(q, q), 0.0));
+    s(q) = std::sqrt(std::max({model(q, q), robust(q, q), 0.0}));
+  }
+  Eigen::MatrixXd out(p, p);
+  for (Eigen::Index j = 0; j < p; ++j)
+    for (Eigen::Index i = 0; i < p; ++i) {
+      if (i == j) {
+        out(i, j) = s(i) * s(i);
+      } else {
+        const double c = m(i) > 0 && m(j) > 0 ? model(i, j) / (m(i) * m(j)) : 0.0;
+        out(i, j) = s(i) * s(j) * c;
+      }
+    }
+  return out;
+}
+
 }  // namespace friction

@@ -64,4 +64,51 @@ class ColouredGram {
 Eigen::MatrixXd sandwich_covariance(const Eigen::MatrixXd& gram_inverse,
                                     const Eigen::MatrixXd& coloured, double residual_variance);
 
+// Misfit as well as noise: block scores.
+//
+// The AR(1) sandwich models the residual as stationary noise.  A fitted friction model's residual
+// also holds what its structure misses (a presliding curve of another shape, a level that the
+// pieces approximate), which repeats with the motion and leaks into the parameters: on the
+// discovery study's records the AR(1) intervals of the pieces' parameters covered their truth 61-65
+// % of the time (|z| of 3-16 for delays, wavelengths, viscous terms).  The batch-means (cluster)
+// sandwich makes no model of the residual: the record is cut into B consecutive blocks and
+//     C_block = (J^T J)^-1 (sum_b s_b s_b^T) (J^T J)^-1 * B/(B-1) * (N-1)/(N-r),   s_b = J_b^T e_b,
+// the score of block b (r the rank of the fit; the factors are the usual small-sample ones).
+// What the residual shares with a parameter's sensitivity, noise or misfit, shows in how the block
+// scores scatter.  Blocks must be long against the residual's correlation (the AR(1) integrated
+// time tau = (1+phi)/(1-phi): with blocks of 5 tau the variance is biased low by about a tenth)
+// and many (the estimate's relative error is about sqrt(2/B)): length max(floor(sqrt N), 5 tau),
+// the usual batch-means rate, and not used below 10 blocks.  Each parameter's standard error is the
+// larger of the two; the correlations are the AR(1) sandwich's (block_robust_covariance).
+
+/// Block length of the block scores for a residual of N samples and colour c (above).
+std::size_t score_block_length(std::size_t n, const ResidualColour& c);
+
+/// Accumulates sum_b s_b s_b^T over consecutive blocks of `block_length` rows (time order).
+class BlockScores {
+ public:
+  BlockScores(std::size_t parameters, std::size_t block_length);
+  /// Adds the Jacobian row and residual of the next sample.
+  void add(std::span<const double> row, double residual);
+  Eigen::MatrixXd meat() const;  ///< sum_b s_b s_b^T, the last (partial) block included
+  std::size_t blocks() const;    ///< B, the partial block included
+
+ private:
+  std::size_t length_, in_block_ = 0, blocks_ = 0;
+  Eigen::VectorXd score_;
+  Eigen::MatrixXd meat_;
+};
+
+/// The fewest blocks the block scores are used with.
+inline constexpr std::size_t kMinimumScoreBlocks = 10;
+
+/// C_block from the accumulated scores (above); `rank` is the fit's rank.
+Eigen::MatrixXd block_sandwich_covariance(const Eigen::MatrixXd& gram_inverse,
+                                          const BlockScores& scores, std::size_t n,
+                                          std::size_t rank);
+
+/// The covariance with each variance the larger of `model`'s and `robust`'s and the correlations
+/// of `model` (S R S: positive semi-definite as R is).
+Eigen::MatrixXd larger_variances(const Eigen::MatrixXd& model, const Eigen::MatrixXd& robust);
+
 }  // namespace friction
