@@ -144,9 +144,11 @@
 //
 // 6. Uncertainty.  Every finding carries the standard errors and 95 % intervals of its parameters
 //    in the fit of its step of the chain, and the final model the standard errors of all its
-//    pieces (`final.pieces`, the shape `identify --extension` uses): the Gauss-Newton covariance
-//    of that joint fit on the estimation record (report_extended_slip, covariance_report.hpp);
-//    the pieces are fitted linearly, so the intervals are symmetric.  A parameter at a bound of its
+//    pieces (`final.pieces`, the shape `identify --extension` uses): the covariance of that joint
+//    fit on the estimation record (report_extended_slip, covariance_report.hpp), each variance
+//    the larger of the AR(1) sandwich's and the block scores' (noise_colour.hpp: the residual
+//    holds the model's misfit as well as noise); the pieces are fitted linearly, so the
+//    intervals are symmetric.  A parameter at a bound of its
 //    box, or a rank-deficient fit, has none (null).
 //
 // Stages.  diagnose() runs named stages over typed data (src/diagnose_stages.hpp): the baseline,

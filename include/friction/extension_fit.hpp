@@ -153,8 +153,9 @@ ExtensionParameters<double> to_own_reference(const ExtensionParameters<double>& 
 double own_reference_ratio(const ExtensionParameters<double>& ext, double own_f0);
 
 /// Standard errors and 95 % intervals of a joint fit at its optimum on the record `r` it was
-/// fitted on: the Gauss-Newton covariance of theta = [log k, log Delta, pieces] with the relative
-/// initial deflections as nuisance parameters (those at +-1 held), through covariance_report.hpp.
+/// fitted on: the covariance (extension_identification.hpp, 3) of theta = [log k, log Delta,
+/// pieces] with the relative initial deflections as nuisance parameters (those at +-1 held),
+/// through covariance_report.hpp.
 /// Parameters at a bound of their box have no standard error; a rank-deficient J^T J gives none.
 struct ExtendedSlipReport {
   std::vector<ExtensionEstimate> pieces;  ///< in the model's own F0, symmetric intervals

@@ -85,9 +85,10 @@
 // 3. Report.  Every piece's parameters in SI with the names of methods.md 7, and standard errors
 //    (through covariance_report.hpp, in the parametrisation each parameter is fitted in: log-normal
 //    intervals for log k, log Delta and DNLRX's log Delta, symmetric for the pieces, the DNLRX
-//    filters and the LuGre parameters, which are refitted in SI) from the Gauss-Newton covariance
-//    at the optimum of the final fit,
-//        cov = s^2 (J^T J)^-1,   s^2 = RSS / (N - p),
+//    filters and the LuGre parameters, which are refitted in SI) from the covariance at the
+//    optimum of the final fit: the sandwich s^2 (J^T J)^-1 (J^T R J) (J^T J)^-1 of an AR(1)
+//    residual, s^2 = RSS / (N - p) (the Gauss-Newton s^2 (J^T J)^-1 when the residual is white),
+//    each variance raised to that of the block scores where larger (noise_colour.hpp),
 //    over the free parameters (the base's when it was refitted, and the initial state), J the
 //    Jacobian of the free-run residuals (automatic derivatives).
 //    Parameters sitting at a bound of the fit are left out (their standard error is 0: not
@@ -95,9 +96,9 @@
 //    1e-12 of the largest) the parameters with a part in those null directions (sum of their
 //    squared components over the null eigenvectors >= 1e-6) get no standard error, the others
 //    theirs from the pseudo-inverse (exact for estimable parameters), and a warning names the
-//    pieces' parameters left without one; never NaN.  The
-//    residual of a free run is not white where the model is imperfect, so the errors are a lower
-//    bound there.
+//    pieces' parameters left without one; never NaN.  The residual of a free run holds the
+//    model's misfit where it is imperfect; the block scores see the part of it that varies along
+//    the record, not a bias the whole record shares, so the errors can still be too small there.
 //    A piece is "not supported by the record" (warning "the record gives no evidence of <effect>")
 //    when its main parameter (viscous, static - F0, lag_time, asymmetry, offset, mass, amplitude,
 //    relative_rate, delay) is within 2 standard errors of its null value or ends at the bound that
