@@ -102,6 +102,34 @@ TEST(SampleDerivatives, InertiaSurvivesQuantisation) {
   EXPECT_LT(least_squares_mass(raw), 0.8 * mass);  // what the second difference gives
 }
 
+// choose_derivative_windows keeps its last answers (sample_derivatives.cpp): records of the same
+// length and different content must each get their own windows, whatever order they are asked
+// in, and the same windows as a record that only shares their samples by value.
+TEST(SampleDerivatives, RememberedWindowsBelongToTheirRecord) {
+  const std::size_t n = 4000;
+  std::vector<double> t(n), slow(n), fast(n), quantised(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    t[k] = 1e-3 * static_cast<double>(k);
+    slow[k] = 1e-3 * std::sin(2 * M_PI * 0.5 * t[k]);
+    fast[k] = 1e-3 * std::sin(2 * M_PI * 40 * t[k]);
+    quantised[k] = 1e-6 * std::round(slow[k] / 1e-6);
+  }
+  const DerivativeWindows a = choose_derivative_windows(t, slow);
+  const DerivativeWindows b = choose_derivative_windows(t, fast);
+  const DerivativeWindows c = choose_derivative_windows(t, quantised);
+  EXPECT_NE(a, b);
+  EXPECT_NE(a, c);
+  EXPECT_GT(c.displacement_noise, 10 * a.displacement_noise);  // the encoder's step, seen
+  EXPECT_EQ(choose_derivative_windows(t, fast), b);
+  EXPECT_EQ(choose_derivative_windows(t, slow), a);
+  const std::vector<double> copy = quantised;  // other storage, the same samples
+  EXPECT_EQ(choose_derivative_windows(t, copy), c);
+  // The same displacement on another time grid is another record.
+  std::vector<double> t2 = t;
+  for (double& v : t2) v *= 2;
+  EXPECT_NE(choose_derivative_windows(t2, slow).sampling_period, a.sampling_period);
+}
+
 }  // namespace
 }  // namespace test_sample_derivatives
 }  // namespace friction::testing

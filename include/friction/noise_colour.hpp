@@ -69,8 +69,8 @@ Eigen::MatrixXd sandwich_covariance(const Eigen::MatrixXd& gram_inverse,
 // The AR(1) sandwich models the residual as stationary noise.  A fitted friction model's residual
 // also holds what its structure misses (a presliding curve of another shape, a level that the
 // pieces approximate), which repeats with the motion and leaks into the parameters: on the
-// discovery study's records the AR(1) intervals of the pieces' parameters covered their truth 61-65
-// % of the time (|z| of 3-16 for delays, wavelengths, viscous terms).  The batch-means (cluster)
+// discovery study's records the AR(1) intervals of the pieces' parameters covered their truth
+// 61-65 % of the time (|z| of 3-16 for delays, wavelengths, viscous terms).  The batch-means (cluster)
 // sandwich makes no model of the residual: the record is cut into B consecutive blocks and
 //     C_block = (J^T J)^-1 (sum_b s_b s_b^T) (J^T J)^-1 * B/(B-1) * (N-1)/(N-r),   s_b = J_b^T e_b,
 // the score of block b (r the rank of the fit; the factors are the usual small-sample ones).
@@ -79,7 +79,7 @@ Eigen::MatrixXd sandwich_covariance(const Eigen::MatrixXd& gram_inverse,
 // time tau = (1+phi)/(1-phi): with blocks of 5 tau the variance is biased low by about a tenth)
 // and many (the estimate's relative error is about sqrt(2/B)): length max(floor(sqrt N), 5 tau),
 // the usual batch-means rate, and not used below 10 blocks.  Each parameter's standard error is the
-// larger of the two; the correlations are the AR(1) sandwich's (block_robust_covariance).
+// larger of the two; the correlations are the AR(1) sandwich's (larger_variances).
 
 /// Block length of the block scores for a residual of N samples and colour c (above).
 std::size_t score_block_length(std::size_t n, const ResidualColour& c);
