@@ -38,14 +38,21 @@ TEST(NoiseColour, LagCorrelationsOfAnAr1Series) {
   EXPECT_FALSE(residual_colour(e).ar1_adequate);
 }
 
-TEST(NoiseColour, SandwichMatchesTheSpreadOfEstimates) {
-  const std::size_t n = 2000, reps = 2000;
+// The regressors of the Monte-Carlo tests: a slow sinusoid (3 cycles over the record) and a fast
+// one (`fast_cycles`).
+Eigen::MatrixXd slow_and_fast_regressors(std::size_t n, double fast_cycles) {
   Eigen::MatrixXd j(n, 2);
   for (std::size_t t = 0; t < n; ++t) {
     const double s = static_cast<double>(t) / static_cast<double>(n);
-    j(static_cast<Eigen::Index>(t), 0) = std::sin(2 * M_PI * 3 * s);    // slow
-    j(static_cast<Eigen::Index>(t), 1) = std::sin(2 * M_PI * 400 * s);  // fast (5 samples)
+    j(static_cast<Eigen::Index>(t), 0) = std::sin(2 * M_PI * 3 * s);
+    j(static_cast<Eigen::Index>(t), 1) = std::sin(2 * M_PI * fast_cycles * s);
   }
+  return j;
+}
+
+TEST(NoiseColour, SandwichMatchesTheSpreadOfEstimates) {
+  const std::size_t n = 2000, reps = 2000;
+  const Eigen::MatrixXd j = slow_and_fast_regressors(n, 400);  // fast: a period of 5 samples
   const Eigen::MatrixXd jtj_inv = (j.transpose() * j).inverse();
   for (double phi : {0.0, 0.5, 0.9, 0.95}) {
     std::mt19937_64 gen(1234 + static_cast<unsigned>(phi * 100));
@@ -96,12 +103,7 @@ TEST(NoiseColour, SandwichMatchesTheSpreadOfEstimates) {
 // larger of the two covers about as the AR(1) sandwich alone does.
 TEST(NoiseColour, BlockScoresCoverWhenTheResidualFollowsTheRegressors) {
   const std::size_t n = 2000, reps = 2000;
-  Eigen::MatrixXd j(n, 2);
-  for (std::size_t t = 0; t < n; ++t) {
-    const double s = static_cast<double>(t) / static_cast<double>(n);
-    j(static_cast<Eigen::Index>(t), 0) = std::sin(2 * M_PI * 3 * s);    // slow
-    j(static_cast<Eigen::Index>(t), 1) = std::sin(2 * M_PI * 170 * s);  // fast (12 samples)
-  }
+  const Eigen::MatrixXd j = slow_and_fast_regressors(n, 170);  // fast: a period of 12 samples
   const Eigen::MatrixXd jtj_inv = (j.transpose() * j).inverse();
   for (const bool follows : {true, false}) {
     std::mt19937_64 gen(follows ? 90210 : 90211);
