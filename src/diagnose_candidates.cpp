@@ -22,6 +22,16 @@ namespace friction::diagnose_detail {
 
 namespace {
 
+// The diagnosis restarts its base on the force divided by the level, not under the level as
+// `identify --extension` does (ExtensionFitOptions::base_under_level).  Under the level its chain
+// on data/ (a GMS record: Stribeck, the GMS lag, viscous) fitted closer to the floor (final
+// validation 0.0125 % -> 0.0074 %) and then took a fourth finding, an inertia of 0.13 kg with a
+// validation gain of 1.06, which the record does not contain: a piece taking up the remaining
+// misfit of a Maxwell Slip base on GMS data, which the acceptance rules let through once the
+// chain before it fits better.  Until the rules guard against that, the diagnosis keeps the
+// restart that names what the records hold.
+constexpr bool kDiagnoseBaseUnderLevel = false;
+
 double bic(double rss, std::size_t n, std::size_t p) {
   return bayesian_information_criterion(rss, n, p);
 }
@@ -235,6 +245,7 @@ State accepted(const Context& c, const State& s, const Tried& t) {
   o.max_operators = c.options.method.max_operators;
   o.global_stage = false;
   o.grow_operators = false;
+  o.base_under_level = kDiagnoseBaseUnderLevel;
   bool restarted = false;
   const ExtendedSlipFit g = extension_detail::restart_base(c.est, t.result, o, restarted);
   if (restarted) {
@@ -428,6 +439,7 @@ void polish_final(const Context& c, Chain& chain) {
   o.max_operators = c.options.method.max_operators;
   o.global_stage = c.options.method.global_stage;
   o.grow_operators = true;
+  o.base_under_level = kDiagnoseBaseUnderLevel;
   bool restarted = false;
   const ExtendedSlipFit g = extension_detail::restart_base(
       c.est, ExtendedSlipFit{last.base, last.rho, last.ext, last.rss, true, last.at_bound}, o,

@@ -12,6 +12,7 @@
 #include "friction/extension_fit.hpp"
 #include "friction/identification.hpp"
 #include "friction/nlr.hpp"
+#include "slip_regression.hpp"
 
 namespace friction::extension_detail {
 
@@ -123,13 +124,44 @@ std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit&
 
 namespace {
 
+// The force without the added terms (viscous, offset, inertia) and the slip limits of the fitted
+// model's run: its level and asymmetry per sample, and the level at the first sample.
+std::vector<double> force_under_limits(const Record& r, const ExtendedSlipFit& cur,
+                                       detail::SlipLimits& limits) {
+  const double asymmetry = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
+  Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(cur.base), cur.ext, 2);
+  model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho, cur.ext)),
+                     model.asymmetry());
+  std::vector<double> target(r.size());
+  limits.upper.assign(r.size(), 1.0);
+  limits.lower.assign(r.size(), 1.0);
+  for_each_extended_step(model, std::span<const double>(r.time),
+                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
+                         nullptr, [&](std::size_t k, const ExtendedMotion<double>& c, double) {
+                           const double vl =
+                               cur.ext.frictional_lag ? model.lagged_velocity() : c.piece_velocity;
+                           double added = 0;
+                           if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
+                           if (cur.ext.offset) added += cur.ext.offset->offset;
+                           if (cur.ext.inertia) added += cur.ext.inertia->mass * c.acceleration;
+                           target[k] = r.force[k] - added;
+                           const double level = model.level();
+                           limits.upper[k] = level * (1.0 + asymmetry);
+                           limits.lower[k] = level * (1.0 - asymmetry);
+                           if (k == 0) limits.first = level;
+                         });
+  return target;
+}
+
 double fit_bic(const Record& r, const ExtendedSlipFit& f) {
   return bayesian_information_criterion(f.rss, r.size(),
                                         2 * f.base.size() + f.ext.parameter_count());
 }
 
 // NLR with `operators` (0: its order selection) on the force without the pieces of `cur`, then
-// the joint fit from that base; nothing when either fails.
+// the joint fit from that base; nothing when either fails.  Under a level that changes along the
+// record (o.base_under_level) NLR runs twice, on the force divided by the level and with its
+// operators under the level, and the joint fit with the lower BIC is returned.
 std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipFit& cur,
                                             const ExtensionFitOptions& o, std::size_t operators) {
   NlrOptions n;
@@ -137,24 +169,52 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
   if (o.max_operators > 0) n.max_operators = o.max_operators;
   n.global_stage = o.global_stage;
   n.covariance = false;
+  // A delay shifts the motion the operators see (extensions.hpp): NLR runs on the displacement
+  // at t - D.  On the record as recorded the operators cannot follow the shifted reversals, and
+  // BIC stopped at 6 operators where the system's twin without the delay took 8 (2.05 times the
+  // floor on a discovery-study record).
+  std::vector<double> x;
+  delayed_displacement_into(std::span<const double>(r.time),
+                            std::span<const double>(r.displacement),
+                            cur.ext.delay ? cur.ext.delay->delay : 0.0, x);
+  std::optional<ExtendedSlipFit> best;
+  auto consider = [&](const NlrResult& nr, std::vector<double> rho) {
+    ExtendedSlipFit g = fit_extended_slip(r, nr.parameters, rho, cur.ext, false, o.max_iterations);
+    if (g.ok && (!best || fit_bic(r, g) < fit_bic(r, *best))) best = std::move(g);
+  };
   try {
-    // A delay shifts the motion the operators see (extensions.hpp): NLR runs on the displacement
-    // at t - D.  On the record as recorded the operators cannot follow the shifted reversals, and
-    // BIC stopped at 6 operators where the system's twin without the delay took 8 (2.05 times
-    // the floor on a discovery-study record).
-    std::vector<double> x;
-    delayed_displacement_into(std::span<const double>(r.time),
-                              std::span<const double>(r.displacement),
-                              cur.ext.delay ? cur.ext.delay->delay : 0.0, x);
     const NlrResult nr = identify_maxwell_slip(r.time, x, force_without_pieces(r, cur), n);
-    ExtendedSlipFit g = fit_extended_slip(
-        r, nr.parameters, state_from(nr.report.initial_deflections, nr.parameters.threshold),
-        cur.ext, false, o.max_iterations);
-    if (g.ok) return g;
+    consider(nr, state_from(nr.report.initial_deflections, nr.parameters.threshold));
   } catch (const Error&) {
     // No fit from this base.
   }
-  return std::nullopt;
+  // The force divided by the level is no Maxwell Slip force in presliding, where the operators
+  // do not feel the level: on it NLR drove operators to zero stiffness under a Stribeck peak (a
+  // discovery-study record 3.8 times the floor), which NLR under the level (slip_regression.hpp,
+  // SlipLimits) does not.  Neither is better on every record (the note of ExtensionFitOptions::
+  // base_under_level), so both are tried.
+  const bool moving_level =
+      o.base_under_level &&
+      (cur.ext.stribeck || cur.ext.position_dependence || cur.ext.drift || cur.ext.normal_load);
+  if (moving_level) {
+    try {
+      detail::SlipLimits limits;
+      const std::vector<double> target = force_under_limits(r, cur, limits);
+      NlrOptions under = n;
+      under.refine_initial_state = false;  // its search knows only the nominal box
+      const NlrResult nr =
+          detail::identify_maxwell_slip_under_limits(r.time, x, target, under, limits);
+      // NLR's initial deflections are relative to the nominal box [-Delta, Delta]; the model's
+      // state is relative to its own, centred on a Delta (deflections_from_relative).
+      std::vector<double> rho = state_from(nr.report.initial_deflections, nr.parameters.threshold);
+      const double a = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
+      for (double& v : rho) v = std::clamp(v - a, -1.0, 1.0);
+      consider(nr, std::move(rho));
+    } catch (const Error&) {
+      // No fit from this base.
+    }
+  }
+  return best;
 }
 
 }  // namespace

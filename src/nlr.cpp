@@ -31,6 +31,9 @@ struct Data {
   double floor_percent = 0;
   double sigma2 = 0;  // variance of that noise in units of the scaled force; 0: unknown
   detail::StickBreaking sb{1, 2};
+  // The slip limits' factors per sample when the operators are fitted under a level (slip
+  // regression.hpp, SlipLimits; identify_maxwell_slip_under_limits); null: the nominal box.
+  const detail::SlipLimits* limits = nullptr;
 };
 
 struct VpValue {
@@ -232,7 +235,7 @@ const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<c
     std::vector<double> init(m);
     for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
     const bool sensitivities = with_jacobian || ws.eager;
-    detail::operator_trajectories(thr, init, d.x, sensitivities, traj);
+    detail::operator_trajectories(thr, init, d.x, sensitivities, traj, d.limits);
     const Eigen::VectorXd lo = Eigen::VectorXd::Zero(mi);
     const Eigen::VectorXd hi =
         Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity());
@@ -319,7 +322,8 @@ class JointCost final : public ceres::CostFunction {
     }
     std::vector<double> init(m);
     for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
-    const auto traj = detail::operator_trajectories(thr, init, d_.x, jacobians != nullptr);
+    const auto traj =
+        detail::operator_trajectories(thr, init, d_.x, jacobians != nullptr, d_.limits);
     Eigen::VectorXd k(m_);
     for (int i = 0; i < m_; ++i) k(i) = std::exp(p[0][i]);
     const Eigen::Index n = traj.delta.rows();
@@ -388,7 +392,8 @@ ceres::Solver::Options solver_options(const NlrOptions& o) {
 // estimate for those parameters.
 std::vector<double> start_rho(const Data& d, const std::vector<double>& thr) {
   const std::size_t m = thr.size();
-  const auto traj = detail::operator_trajectories(thr, std::vector<double>(m, 0.0), d.x, false);
+  const auto traj =
+      detail::operator_trajectories(thr, std::vector<double>(m, 0.0), d.x, false, d.limits);
   const Eigen::Index mi = static_cast<Eigen::Index>(m);
   const Eigen::VectorXd k = detail::box_least_squares(
       traj.delta, d.y, Eigen::VectorXd::Zero(mi),
@@ -654,7 +659,7 @@ void threshold_moves(
       std::vector<double> t(b), init(b);
       for (std::size_t jj = 0; jj < b; ++jj)
         t[jj] = cands[j0 + jj].threshold, init[jj] = cands[j0 + jj].rho * t[jj];
-      detail::operator_trajectories(t, init, d.x, false, cand);
+      detail::operator_trajectories(t, init, d.x, false, cand, d.limits);
       cross.noalias() = phi.transpose() * cand.delta;
       const Eigen::VectorXd cc = cand.delta.colwise().squaredNorm().transpose();
       const Eigen::VectorXd cy = cand.delta.transpose() * d.y;
@@ -861,8 +866,11 @@ void nlr_projected_residual(std::span<const double> x, std::span<const double> f
   }
 }
 
-NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const double> x,
-                                std::span<const double> force, const NlrOptions& o) {
+namespace {
+
+NlrResult identify(std::span<const double> time, std::span<const double> x,
+                   std::span<const double> force, const NlrOptions& o,
+                   const detail::SlipLimits* limits) {
   const auto clock_start = std::chrono::steady_clock::now();
   FRICTION_CHECK(time.size() == x.size() && x.size() == force.size(),
                  "identify_maxwell_slip: time, displacement and force lengths differ");
@@ -877,6 +885,7 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
   Data d;
   d.x = x;
   d.force = force;
+  d.limits = limits;
   const Eigen::Map<const Eigen::VectorXd> f(force.data(), static_cast<Eigen::Index>(force.size()));
   const double sss = f.squaredNorm();
   FRICTION_CHECK(sss > 0.0, "identify_maxwell_slip: the force is identically zero");
@@ -958,8 +967,16 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
   // Errors of the free run from the estimated initial state (the routine validation uses).
   std::vector<double> guess(m);
   for (std::size_t i = 0; i < m; ++i) guess[i] = rho[i] * p.threshold[i];
-  rep.initial_deflections = estimate_initial_deflections(p, x, force, guess);
-  {
+  if (limits) {
+    // Under a level the fit's own initial state (the estimate below knows only the nominal box),
+    // and the run under the same limits.
+    rep.initial_deflections = guess;
+    const auto tr = detail::operator_trajectories(p.threshold, guess, x, false, limits);
+    const Eigen::Map<const Eigen::VectorXd> k(p.stiffness.data(), static_cast<Eigen::Index>(m));
+    const Eigen::VectorXd fhat = tr.delta * k;
+    rep.estimation_simulated.assign(fhat.data(), fhat.data() + fhat.size());
+  } else {
+    rep.initial_deflections = estimate_initial_deflections(p, x, force, guess);
     MaxwellSlip<double> model(p);
     model.reset(std::span<const double>(rep.initial_deflections));
     rep.estimation_simulated.resize(x.size());
@@ -996,7 +1013,7 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
     std::vector<double> init(m);
     for (std::size_t i = 0; i < m; ++i) init[i] = rep.initial_deflections[i];
     // J (N x 3M) goes in blocks of rows into its triangular factor R: the SVD of R is J's.
-    const auto tr = detail::operator_trajectories(p.threshold, init, x, true);
+    const auto tr = detail::operator_trajectories(p.threshold, init, x, true, limits);
     const Eigen::Index nn = tr.delta.rows();
     detail::RowCompressor compressor(3 * mi);
     constexpr Eigen::Index kRows = 1024;
@@ -1065,5 +1082,24 @@ NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const do
       std::chrono::duration<double>(std::chrono::steady_clock::now() - clock_start).count();
   return result;
 }
+
+}  // namespace
+
+NlrResult identify_maxwell_slip(std::span<const double> time, std::span<const double> x,
+                                std::span<const double> force, const NlrOptions& o) {
+  return identify(time, x, force, o, nullptr);
+}
+
+namespace detail {
+
+NlrResult identify_maxwell_slip_under_limits(std::span<const double> time,
+                                             std::span<const double> x,
+                                             std::span<const double> force,
+                                             const NlrOptions& options,
+                                             const SlipLimits& limits) {
+  return identify(time, x, force, options, &limits);
+}
+
+}  // namespace detail
 
 }  // namespace friction

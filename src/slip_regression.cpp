@@ -7,9 +7,58 @@
 
 namespace friction::detail {
 
+namespace {
+
+// operator_trajectories under SlipLimits: the same recursion with a box that moves per sample.
+void trajectories_under_limits(std::span<const double> thresholds,
+                               std::span<const double> initial, std::span<const double> x,
+                               bool sensitivities, OperatorTrajectories& out,
+                               const SlipLimits& limits) {
+  const std::size_t m = thresholds.size();
+  const Eigen::Index n = static_cast<Eigen::Index>(x.size());
+  FRICTION_CHECK(limits.upper.size() == x.size() && limits.lower.size() == x.size(),
+                 "Maxwell Slip: slip limits for ", limits.upper.size(), " and ",
+                 limits.lower.size(), " samples, the record has ", x.size());
+  FRICTION_CHECK(std::isfinite(limits.first) && limits.first > 0.0,
+                 "Maxwell Slip: the first level ", limits.first, " must be finite and > 0");
+  for (std::size_t t = 0; t < x.size(); ++t)
+    FRICTION_CHECK(limits.upper[t] > 0.0 && limits.lower[t] > 0.0 &&
+                       std::isfinite(limits.upper[t]) && std::isfinite(limits.lower[t]),
+                   "Maxwell Slip: slip limit factors at sample ", t, " must be finite and > 0");
+  for (std::size_t i = 0; i < m; ++i)
+    FRICTION_CHECK(std::isfinite(thresholds[i]) && thresholds[i] > 0.0, "Maxwell Slip: threshold[",
+                   i, "] = ", thresholds[i], " m must be finite and > 0");
+  std::vector<double> v(m), g_threshold(m, 0.0), g_initial(m, limits.first);
+  for (std::size_t i = 0; i < m; ++i) v[i] = limits.first * initial[i];
+  double* delta = out.delta.data();
+  double* dt = sensitivities ? out.d_threshold.data() : nullptr;
+  double* di = sensitivities ? out.d_initial.data() : nullptr;
+  for (Eigen::Index t = 0; t < n; ++t) {
+    const std::size_t ts = static_cast<std::size_t>(t);
+    const double dx = t > 0 ? x[ts] - x[ts - 1] : 0.0;
+    const double up = limits.upper[ts], down = limits.lower[ts];
+    for (std::size_t i = 0; i < m; ++i) {
+      const double u = v[i] + dx, hi = up * thresholds[i], lo = -down * thresholds[i];
+      const bool above = u > hi, below = u < lo;
+      v[i] = above ? hi : (below ? lo : u);
+      const Eigen::Index at = static_cast<Eigen::Index>(i) * n + t;
+      delta[at] = v[i];
+      if (sensitivities) {
+        g_threshold[i] = above ? up : (below ? -down : g_threshold[i]);
+        g_initial[i] = above || below ? 0.0 : g_initial[i];
+        dt[at] = g_threshold[i];
+        di[at] = g_initial[i];
+      }
+    }
+  }
+}
+
+}  // namespace
+
 void operator_trajectories(std::span<const double> thresholds,
                            std::span<const double> initial, std::span<const double> x,
-                           bool sensitivities, OperatorTrajectories& out) {
+                           bool sensitivities, OperatorTrajectories& out,
+                           const SlipLimits* limits) {
   const std::size_t m = thresholds.size();
   FRICTION_CHECK(initial.size() == m, "Maxwell Slip: ", initial.size(), " initial deflections for ",
                  m, " operators");
@@ -19,6 +68,10 @@ void operator_trajectories(std::span<const double> thresholds,
   if (sensitivities) {
     out.d_threshold.resize(n, mi);
     out.d_initial.resize(n, mi);
+  }
+  if (limits) {
+    trajectories_under_limits(thresholds, initial, x, sensitivities, out, *limits);
+    return;
   }
   // The recursion of one operator is a chain of dependent additions and clamps (about 12 cycles
   // per sample), so the operators are stepped side by side, time outermost: their chains are
@@ -69,9 +122,10 @@ void operator_trajectories(std::span<const double> thresholds,
 
 OperatorTrajectories operator_trajectories(std::span<const double> thresholds,
                                            std::span<const double> initial,
-                                           std::span<const double> x, bool sensitivities) {
+                                           std::span<const double> x, bool sensitivities,
+                                           const SlipLimits* limits) {
   OperatorTrajectories out;
-  operator_trajectories(thresholds, initial, x, sensitivities, out);
+  operator_trajectories(thresholds, initial, x, sensitivities, out, limits);
   return out;
 }
 

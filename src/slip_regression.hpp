@@ -25,6 +25,7 @@
 
 #include "friction/error.hpp"
 #include "friction/maxwell_slip.hpp"
+#include "friction/nlr.hpp"
 
 namespace friction::detail {
 
@@ -34,8 +35,23 @@ struct OperatorTrajectories {
   Eigen::MatrixXd d_initial;    ///< d delta_i(t) / d delta_i(0)
 };
 
+/// Slip limits that change from sample to sample: operator i is clamped to
+/// [-lower[t] Delta_i, upper[t] Delta_i] at sample t, and its initial deflection, given at level 1,
+/// is multiplied by `first`.  This is the box an Extended<MaxwellSlip> hands its base
+/// (extensions.hpp): upper = (1 + a) L(t), lower = (1 - a) L(t), first = L(0), with L the product
+/// of the level pieces along the record and a the asymmetry.  A base fitted under them is fitted
+/// under the pieces' level instead of on the force divided by it, which in presliding (where the
+/// operators do not feel the level) is not the force of any Maxwell Slip model.
+struct SlipLimits {
+  std::vector<double> upper, lower;
+  double first = 1;
+};
+
 /// Deflections of unit-stiffness operators from the given initial deflections (clamped to the
 /// thresholds), sample 0 being the initial state and sample k > 0 the state after x[k]-x[k-1].
+/// With `limits` the thresholds are scaled per sample (SlipLimits) and so are the derivatives:
+/// at a limit d delta_i / d Delta_i is that sample's factor (upper[t] or -lower[t]) rather than
+/// +-1, and d delta_i / d delta_i(0) starts at `first`.
 ///
 /// This is the recursion of MaxwellSlip<ceres::Jet<double, 2>> (eq. 4 with the clamp of
 /// scalar.hpp, which keeps the derivative of the branch taken) written out per operator: at the
@@ -44,11 +60,24 @@ struct OperatorTrajectories {
 /// the Jet arithmetic: the identification evaluates this thousands of times.
 void operator_trajectories(std::span<const double> thresholds,
                            std::span<const double> initial, std::span<const double> x,
-                           bool sensitivities, OperatorTrajectories& out);
+                           bool sensitivities, OperatorTrajectories& out,
+                           const SlipLimits* limits = nullptr);
 
 OperatorTrajectories operator_trajectories(std::span<const double> thresholds,
                                            std::span<const double> initial,
-                                           std::span<const double> x, bool sensitivities);
+                                           std::span<const double> x, bool sensitivities,
+                                           const SlipLimits* limits = nullptr);
+
+/// NLR (identify_maxwell_slip) with its operators under `limits`: the force is sum k_i delta_i
+/// with delta_i clamped to the moving box of SlipLimits.  The starts' initial states come from
+/// the nominal box (initial_state.hpp knows no other); the local searches fit them under the
+/// limits.  The report's initial deflections are given at level 1 (what SlipLimits::first scales)
+/// and its estimation errors are those of the run under the limits.
+NlrResult identify_maxwell_slip_under_limits(std::span<const double> time,
+                                             std::span<const double> x,
+                                             std::span<const double> force,
+                                             const NlrOptions& options,
+                                             const SlipLimits& limits);
 
 /// Column `c` delayed by `lag` samples, the record being extended backwards with its first value
 /// (the system at rest before the record: delta(t < 0) = delta(0), dx(t <= 0) = 0).

@@ -235,6 +235,120 @@ TEST(Nlr, OperatorTrajectoriesAreTheJetRunOfTheModel) {
   EXPECT_TRUE(plain.delta == tr.delta);
 }
 
+TEST(Nlr, OperatorTrajectoriesUnderLimitsAreTheJetRunOfTheModel) {
+  // Under SlipLimits (a level and an asymmetry per sample) the recursion must still be autodiff
+  // through MaxwellSlip<Jet<double, 2>> stepped with that level and asymmetry, its state given at
+  // level 1 and scaled by the first level (as Extended hands it over).  To rounding: an initial
+  // deflection beyond the box is clamped at level 1 and then scaled by the model, and scaled then
+  // clamped at the first level by the recursion (the same number in exact arithmetic).
+  const auto sys = four_operator_system();
+  const auto rec = synthetic_record(sys, 1500, 20e-6, 0, kSigma, 5, {0, 0, 0, 0}, nullptr);
+  const std::vector<double> thr{0.7e-6, 2e-6, 6e-6, 3e-5};
+  const std::vector<double> init{1e-6, -2e-6, 0.5e-6, -3e-5};
+  const double a = 0.15;
+  detail::SlipLimits limits;
+  for (std::size_t t = 0; t < rec.size(); ++t) {
+    const double level = 1.0 + 0.6 * std::sin(0.013 * static_cast<double>(t) + 0.4);
+    limits.upper.push_back(level * (1.0 + a));
+    limits.lower.push_back(level * (1.0 - a));
+  }
+  limits.first = 1.0 + 0.6 * std::sin(0.4);
+  detail::OperatorTrajectories tr;
+  detail::operator_trajectories(thr, init, rec.displacement, true, tr, &limits);
+  using Jet = ceres::Jet<double, 2>;
+  MaxwellSlipParameters<Jet> p;
+  std::vector<Jet> start;
+  for (std::size_t i = 0; i < thr.size(); ++i) {
+    p.stiffness.push_back(Jet(1.0));
+    p.threshold.push_back(Jet(thr[i], 0));
+    start.push_back(Jet(init[i], 1));
+  }
+  MaxwellSlip<Jet> model(p);
+  model.reset(std::span<const Jet>(start), Jet(a));
+  model.scale_state(Jet(limits.first));
+  int at_upper = 0, at_lower = 0;
+  for (std::size_t t = 0; t < rec.size(); ++t) {
+    const double dx = t > 0 ? rec.displacement[t] - rec.displacement[t - 1] : 0.0;
+    const double level = 1.0 + 0.6 * std::sin(0.013 * static_cast<double>(t) + 0.4);
+    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0), Jet(level), Jet(a)});
+    for (std::size_t i = 0; i < thr.size(); ++i) {
+      const Jet& j = model.deflections()[i];
+      const auto ti = static_cast<Eigen::Index>(t), ii = static_cast<Eigen::Index>(i);
+      ASSERT_NEAR(tr.delta(ti, ii), j.a, 1e-13 * thr[i]) << t << " " << i;
+      ASSERT_NEAR(tr.d_threshold(ti, ii), j.v[0], 1e-13) << t << " " << i;
+      ASSERT_NEAR(tr.d_initial(ti, ii), j.v[1], 1e-13) << t << " " << i;
+      at_upper += j.v[0] > 0.0;
+      at_lower += j.v[0] < 0.0;
+    }
+  }
+  EXPECT_GT(at_upper, 0);  // both limits were met, each with its own factor
+  EXPECT_GT(at_lower, 0);
+  detail::OperatorTrajectories plain;
+  detail::operator_trajectories(thr, init, rec.displacement, false, plain, &limits);
+  EXPECT_TRUE(plain.delta == tr.delta);
+}
+
+TEST(Nlr, UnderLimitsRecoversAnOperatorSystemWhoseSlipForcesFollowALevel) {
+  // A force made by the test's own recursion: four operators whose slip limits follow a level
+  // that changes along the record (a Stribeck-like bump at slow sliding, a slow ramp), white
+  // noise.  NLR under those limits, M fixed, must recover every stiffness and threshold within
+  // four of its standard errors (log-normal intervals: z of the logarithm) and fit to the noise
+  // floor; NLR on the force divided by the level (what the restart did before) cannot.
+  const auto sys = four_operator_system();
+  auto rec = synthetic_record(sys, 4000, 30e-6, 0, 0.0, 7, {0, 0, 0, 0}, nullptr);
+  const std::size_t n = rec.size();
+  detail::SlipLimits limits;
+  std::vector<double> level(n);
+  for (std::size_t t = 0; t < n; ++t) {
+    const double v = t > 0 ? (rec.displacement[t] - rec.displacement[t - 1]) / 1e-3 : 0.0;
+    level[t] = (1.0 + 0.5 * std::exp(-std::pow(std::abs(v) / 2e-4, 2))) *
+               (1.0 + 0.3 * static_cast<double>(t) / static_cast<double>(n));
+  }
+  limits.upper = level;
+  limits.lower = level;
+  limits.first = level[0];
+  std::vector<double> delta(sys.size(), 0.0);
+  std::mt19937 gen(2718);
+  const double sigma = 2e-3 * sys.sliding_force();
+  std::normal_distribution<double> noise(0.0, sigma);
+  for (std::size_t t = 0; t < n; ++t) {
+    const double dx = t > 0 ? rec.displacement[t] - rec.displacement[t - 1] : 0.0;
+    double f = 0;
+    for (std::size_t i = 0; i < sys.size(); ++i) {
+      const double lim = level[t] * sys.threshold[i];
+      delta[i] = std::clamp(delta[i] + dx, -lim, lim);
+      f += sys.stiffness[i] * delta[i];
+    }
+    rec.force[t] = f + noise(gen);
+  }
+  NlrOptions o;
+  o.operators = sys.size();
+  o.refine_initial_state = false;
+  const NlrResult r =
+      detail::identify_maxwell_slip_under_limits(rec.time, rec.displacement, rec.force, o, limits);
+  ASSERT_EQ(r.parameters.size(), sys.size());
+  const double floor = static_cast<double>(n) * sigma * sigma;
+  EXPECT_LT(r.report.estimation.rss, floor * (1.0 + 4.0 * std::sqrt(2.0 / static_cast<double>(n))))
+      << "floor " << floor;
+  for (std::size_t i = 0; i < 2 * sys.size(); ++i) {
+    const ParameterEstimate& e = r.report.parameters[i];
+    const double truth = i < sys.size() ? sys.stiffness[i] : sys.threshold[i - sys.size()];
+    ASSERT_GT(e.standard_error, 0.0) << e.name;
+    // The interval is log-normal: the standard error of log(value) is se / value.
+    const double z = std::log(e.value / truth) / (e.standard_error / e.value);
+    EXPECT_LE(std::abs(z), 4.0) << e.name << " " << e.value << " against " << truth;
+  }
+  std::vector<double> divided(n);
+  for (std::size_t t = 0; t < n; ++t) divided[t] = rec.force[t] / level[t];
+  const NlrResult plain = identify_maxwell_slip(rec.time, rec.displacement, divided, o);
+  double rss_plain = 0;
+  for (std::size_t t = 0; t < n; ++t) {
+    const double e = divided[t] - plain.report.estimation_simulated[t];
+    rss_plain += e * e * level[t] * level[t];
+  }
+  EXPECT_GT(rss_plain, 3.0 * floor) << "the division is not what the limits fix on this record";
+}
+
 TEST(Nlr, BoxLeastSquaresMatchesTheActiveSetOnTheFullProblem) {
   // The compressed (R, Q^T b) active set must find the constrained minimum of the full problem:
   // the KKT conditions hold on the original N x P matrix.

@@ -157,6 +157,13 @@ struct ExtensionFitOptions {
   bool global_stage = false;      ///< the restart's NLR global stage
   /// After the restart, M grows one operator at a time while the joint fit's BIC falls (1).
   bool grow_operators = true;
+  /// With a level piece that changes along the record (stribeck, position-dependence, drift,
+  /// normal-load), the restart also runs NLR with the operators under the pieces' level (their
+  /// slip limits scaled per sample), beside NLR on the force divided by the level, and keeps the
+  /// joint fit with the lower BIC.  On the told-the-effect records of the discovery study at four
+  /// seeds (21, 22, 17, 22 eligible records) it passes 70 of 82 against 69 with the division
+  /// alone and 68 under the level alone: each fixes Stribeck records the other misses.
+  bool base_under_level = true;
 };
 
 /// What identify_extensions returns.
