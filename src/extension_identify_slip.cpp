@@ -137,64 +137,64 @@ ExtendedSlipFit add_pieces(const Record& r, ExtendedSlipFit cur, const std::vect
   return cur;
 }
 
-}  // namespace
+// The fitted model's run on the record, per sample: its added terms (viscous on the (lagged)
+// velocity, offset, inertia) and the level it hands its base.  Both forces the restart's NLR runs
+// on are made from it.
+struct PiecesAlongRun {
+  std::vector<double> added, level;
+};
+
+PiecesAlongRun pieces_along_run(const Record& r, const ExtendedSlipFit& cur) {
+  Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(cur.base), cur.ext, 2);
+  model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho, cur.ext)),
+                     model.asymmetry());
+  PiecesAlongRun run{std::vector<double>(r.size()), std::vector<double>(r.size())};
+  for_each_extended_step(model, std::span<const double>(r.time),
+                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
+                         nullptr, [&](std::size_t k, const ExtendedMotion<double>& c, double) {
+                           const double vl =
+                               cur.ext.frictional_lag ? model.lagged_velocity() : c.piece_velocity;
+                           double added = 0;
+                           if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
+                           if (cur.ext.offset) added += cur.ext.offset->offset;
+                           if (cur.ext.inertia) added += cur.ext.inertia->mass * c.acceleration;
+                           run.added[k] = added;
+                           run.level[k] = model.level();
+                         });
+  return run;
+}
 
 // The force with the fitted pieces taken out: added terms subtracted, the asymmetry's shift of the
 // slip limits too (a L F0: exact while the level is constant, extensions.hpp), divided by the level
 // along the fitted model's run.  The restart's order selection runs on it: on the force as
 // recorded, an unmodelled asymmetry or offset dominates the misfit and BIC stops at too few
 // operators (3 for a 10-element system on a discovery-study record, 5 times the floor).
-std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit& cur) {
+std::vector<double> divided_force(const Record& r, const ExtendedSlipFit& cur,
+                                  const PiecesAlongRun& run) {
   const double f0 =
       cur.ext.reference_force > 0 ? cur.ext.reference_force : cur.base.sliding_force();
   const double asymmetry = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
-  Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(cur.base), cur.ext, 2);
-  model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho, cur.ext)),
-                     model.asymmetry());
   std::vector<double> corrected(r.size());
-  for_each_extended_step(model, std::span<const double>(r.time),
-                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
-                         nullptr, [&](std::size_t k, const ExtendedMotion<double>& c, double) {
-                           const double vl =
-                               cur.ext.frictional_lag ? model.lagged_velocity() : c.piece_velocity;
-                           double added = 0;
-                           if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
-                           if (cur.ext.offset) added += cur.ext.offset->offset;
-                           if (cur.ext.inertia) added += cur.ext.inertia->mass * c.acceleration;
-                           added += asymmetry * model.level() * f0;
-                           corrected[k] = (r.force[k] - added) / std::max(model.level(), 0.05);
-                         });
+  for (std::size_t k = 0; k < r.size(); ++k)
+    corrected[k] = (r.force[k] - (run.added[k] + asymmetry * run.level[k] * f0)) /
+                   std::max(run.level[k], 0.05);
   return corrected;
 }
 
-namespace {
-
-// The force without the added terms (viscous, offset, inertia) and the slip limits of the fitted
-// model's run: its level and asymmetry per sample, and the level at the first sample.
+// The force without the added terms and, in `limits`, the slip limits of the fitted model's run:
+// its level and asymmetry per sample, and the level at the first sample.
 std::vector<double> force_under_limits(const Record& r, const ExtendedSlipFit& cur,
-                                       detail::SlipLimits& limits) {
+                                       const PiecesAlongRun& run, detail::SlipLimits& limits) {
   const double asymmetry = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
-  Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(cur.base), cur.ext, 2);
-  model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho, cur.ext)),
-                     model.asymmetry());
   std::vector<double> target(r.size());
-  limits.upper.assign(r.size(), 1.0);
-  limits.lower.assign(r.size(), 1.0);
-  for_each_extended_step(model, std::span<const double>(r.time),
-                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
-                         nullptr, [&](std::size_t k, const ExtendedMotion<double>& c, double) {
-                           const double vl =
-                               cur.ext.frictional_lag ? model.lagged_velocity() : c.piece_velocity;
-                           double added = 0;
-                           if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
-                           if (cur.ext.offset) added += cur.ext.offset->offset;
-                           if (cur.ext.inertia) added += cur.ext.inertia->mass * c.acceleration;
-                           target[k] = r.force[k] - added;
-                           const double level = model.level();
-                           limits.upper[k] = level * (1.0 + asymmetry);
-                           limits.lower[k] = level * (1.0 - asymmetry);
-                           if (k == 0) limits.first = level;
-                         });
+  limits.upper.resize(r.size());
+  limits.lower.resize(r.size());
+  for (std::size_t k = 0; k < r.size(); ++k) {
+    target[k] = r.force[k] - run.added[k];
+    limits.upper[k] = run.level[k] * (1.0 + asymmetry);
+    limits.lower[k] = run.level[k] * (1.0 - asymmetry);
+  }
+  limits.first = r.size() > 0 ? run.level[0] : 1.0;
   return target;
 }
 
@@ -225,6 +225,7 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
   delayed_displacement_into(std::span<const double>(r.time),
                             std::span<const double>(r.displacement),
                             cur.ext.delay ? cur.ext.delay->delay : 0.0, x);
+  const PiecesAlongRun run = pieces_along_run(r, cur);
   std::optional<ExtendedSlipFit> best;
   auto consider = [&](const NlrResult& nr, std::vector<double> rho, bool level) {
     ExtendedSlipFit g = fit_extended_slip(r, nr.parameters, rho, cur.ext, false, o.max_iterations);
@@ -235,7 +236,7 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
   };
   if (!only || !*only) {
     try {
-      const NlrResult nr = identify_maxwell_slip(r.time, x, force_without_pieces(r, cur), n);
+      const NlrResult nr = identify_maxwell_slip(r.time, x, divided_force(r, cur, run), n);
       consider(nr, state_from(nr.report.initial_deflections, nr.parameters.threshold), false);
     } catch (const Error&) {
       // No fit from this base.
@@ -252,7 +253,7 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
   if (moving_level && (!only || *only)) {
     try {
       detail::SlipLimits limits;
-      const std::vector<double> target = force_under_limits(r, cur, limits);
+      const std::vector<double> target = force_under_limits(r, cur, run, limits);
       NlrOptions under = n;
       under.refine_initial_state = false;  // its search knows only the nominal box
       const NlrResult nr =

@@ -38,10 +38,6 @@ void note_rank_deficiency(ExtensionIdentification& res, bool rank_deficient);
 void judge_evidence(ExtensionIdentification& res, const std::vector<Effect>& effects, double f0,
                     double sigmas);
 
-/// The force with the fitted pieces taken out (added terms, the asymmetry's shift), divided by the
-/// level along the fitted model's run.
-std::vector<double> force_without_pieces(const Record& r, const ExtendedSlipFit& cur);
-
 /// The restart (section 1): NLR (order selected again) on the force without the pieces, the joint
 /// fit from that base; the fit with the lower BIC is returned (`restarted` says which), then
 /// grown one operator at a time while BIC falls (o.grow_operators, section 1: Order growth).

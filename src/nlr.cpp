@@ -1097,6 +1097,7 @@ NlrResult identify_maxwell_slip_under_limits(std::span<const double> time,
                                              std::span<const double> force,
                                              const NlrOptions& options,
                                              const SlipLimits& limits) {
+  check_slip_limits(limits, x.size());
   return identify(time, x, force, options, &limits);
 }
 

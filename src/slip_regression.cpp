@@ -19,15 +19,6 @@ void trajectories_under_limits(std::span<const double> thresholds,
   FRICTION_CHECK(limits.upper.size() == x.size() && limits.lower.size() == x.size(),
                  "Maxwell Slip: slip limits for ", limits.upper.size(), " and ",
                  limits.lower.size(), " samples, the record has ", x.size());
-  FRICTION_CHECK(std::isfinite(limits.first) && limits.first > 0.0,
-                 "Maxwell Slip: the first level ", limits.first, " must be finite and > 0");
-  for (std::size_t t = 0; t < x.size(); ++t)
-    FRICTION_CHECK(limits.upper[t] > 0.0 && limits.lower[t] > 0.0 &&
-                       std::isfinite(limits.upper[t]) && std::isfinite(limits.lower[t]),
-                   "Maxwell Slip: slip limit factors at sample ", t, " must be finite and > 0");
-  for (std::size_t i = 0; i < m; ++i)
-    FRICTION_CHECK(std::isfinite(thresholds[i]) && thresholds[i] > 0.0, "Maxwell Slip: threshold[",
-                   i, "] = ", thresholds[i], " m must be finite and > 0");
   std::vector<double> v(m), g_threshold(m, 0.0), g_initial(m, limits.first);
   for (std::size_t i = 0; i < m; ++i) v[i] = limits.first * initial[i];
   double* delta = out.delta.data();
@@ -55,6 +46,18 @@ void trajectories_under_limits(std::span<const double> thresholds,
 
 }  // namespace
 
+void check_slip_limits(const SlipLimits& limits, std::size_t samples) {
+  FRICTION_CHECK(limits.upper.size() == samples && limits.lower.size() == samples,
+                 "Maxwell Slip: slip limits for ", limits.upper.size(), " and ",
+                 limits.lower.size(), " samples, the record has ", samples);
+  FRICTION_CHECK(std::isfinite(limits.first) && limits.first > 0.0,
+                 "Maxwell Slip: the first level ", limits.first, " must be finite and > 0");
+  for (std::size_t t = 0; t < samples; ++t)
+    FRICTION_CHECK(limits.upper[t] > 0.0 && limits.lower[t] > 0.0 &&
+                       std::isfinite(limits.upper[t]) && std::isfinite(limits.lower[t]),
+                   "Maxwell Slip: slip limit factors at sample ", t, " must be finite and > 0");
+}
+
 void operator_trajectories(std::span<const double> thresholds,
                            std::span<const double> initial, std::span<const double> x,
                            bool sensitivities, OperatorTrajectories& out,
@@ -69,6 +72,9 @@ void operator_trajectories(std::span<const double> thresholds,
     out.d_threshold.resize(n, mi);
     out.d_initial.resize(n, mi);
   }
+  for (std::size_t i = 0; i < m; ++i)
+    FRICTION_CHECK(std::isfinite(thresholds[i]) && thresholds[i] > 0.0, "Maxwell Slip: threshold[",
+                   i, "] = ", thresholds[i], " m must be finite and > 0");
   if (limits) {
     trajectories_under_limits(thresholds, initial, x, sensitivities, out, *limits);
     return;
@@ -79,8 +85,6 @@ void operator_trajectories(std::span<const double> thresholds,
   std::vector<double> limit(m), v(m), g_threshold(m, 0.0), g_initial(m, 1.0);
   for (std::size_t i = 0; i < m; ++i) {
     limit[i] = thresholds[i];
-    FRICTION_CHECK(std::isfinite(limit[i]) && limit[i] > 0.0, "Maxwell Slip: threshold[", i,
-                   "] = ", limit[i], " m must be finite and > 0");
     v[i] = initial[i];
     if (v[i] > limit[i])
       v[i] = limit[i], g_threshold[i] = 1.0, g_initial[i] = 0.0;

@@ -47,6 +47,11 @@ struct SlipLimits {
   double first = 1;
 };
 
+/// Throws InvalidParameter unless `limits` has `samples` factors of each kind, all finite and > 0,
+/// and a finite first level > 0.  operator_trajectories checks only the sizes (it runs at every
+/// evaluation of a fit); identify_maxwell_slip_under_limits checks the rest once.
+void check_slip_limits(const SlipLimits& limits, std::size_t samples);
+
 /// Deflections of unit-stiffness operators from the given initial deflections (clamped to the
 /// thresholds), sample 0 being the initial state and sample k > 0 the state after x[k]-x[k-1].
 /// With `limits` the thresholds are scaled per sample (SlipLimits) and so are the derivatives:

@@ -196,6 +196,24 @@ TEST(Nlr, CompressedJacobianHasTheNormalEquationsOfTheFullOne) {
   EXPECT_EQ(bound, 2) << "the points meant to put operators at their bound did not";
 }
 
+// Unit-stiffness operators in MaxwellSlip<Jet<double, 2>>, every threshold seeded (1, 0) and every
+// initial deflection (0, 1), reset with the asymmetry `a`: autodiff through them gives the two
+// sensitivities operator_trajectories writes out by hand.
+MaxwellSlip<ceres::Jet<double, 2>> seeded_operators(const std::vector<double>& thr,
+                                                    const std::vector<double>& init, double a) {
+  using Jet = ceres::Jet<double, 2>;
+  MaxwellSlipParameters<Jet> p;
+  std::vector<Jet> start;
+  for (std::size_t i = 0; i < thr.size(); ++i) {
+    p.stiffness.push_back(Jet(1.0));
+    p.threshold.push_back(Jet(thr[i], 0));
+    start.push_back(Jet(init[i], 1));
+  }
+  MaxwellSlip<Jet> model(p);
+  model.reset(std::span<const Jet>(start), Jet(a));
+  return model;
+}
+
 TEST(Nlr, OperatorTrajectoriesAreTheJetRunOfTheModel) {
   // The hand-written recursion with sensitivities must give, bit for bit, what autodiff through
   // MaxwellSlip<Jet<double, 2>> gives (thresholds seeded (1, 0), initial deflections (0, 1)),
@@ -207,15 +225,7 @@ TEST(Nlr, OperatorTrajectoriesAreTheJetRunOfTheModel) {
   detail::OperatorTrajectories tr;
   detail::operator_trajectories(thr, init, rec.displacement, true, tr);
   using Jet = ceres::Jet<double, 2>;
-  MaxwellSlipParameters<Jet> p;
-  std::vector<Jet> start;
-  for (std::size_t i = 0; i < thr.size(); ++i) {
-    p.stiffness.push_back(Jet(1.0));
-    p.threshold.push_back(Jet(thr[i], 0));
-    start.push_back(Jet(init[i], 1));
-  }
-  MaxwellSlip<Jet> model(p);
-  model.reset(std::span<const Jet>(start));
+  MaxwellSlip<Jet> model = seeded_operators(thr, init, 0.0);
   int saturated = 0;
   for (std::size_t t = 0; t < rec.size(); ++t) {
     const double dx = t > 0 ? rec.displacement[t] - rec.displacement[t - 1] : 0.0;
@@ -246,31 +256,23 @@ TEST(Nlr, OperatorTrajectoriesUnderLimitsAreTheJetRunOfTheModel) {
   const std::vector<double> thr{0.7e-6, 2e-6, 6e-6, 3e-5};
   const std::vector<double> init{1e-6, -2e-6, 0.5e-6, -3e-5};
   const double a = 0.15;
+  std::vector<double> level(rec.size());
   detail::SlipLimits limits;
   for (std::size_t t = 0; t < rec.size(); ++t) {
-    const double level = 1.0 + 0.6 * std::sin(0.013 * static_cast<double>(t) + 0.4);
-    limits.upper.push_back(level * (1.0 + a));
-    limits.lower.push_back(level * (1.0 - a));
+    level[t] = 1.0 + 0.6 * std::sin(0.013 * static_cast<double>(t) + 0.4);
+    limits.upper.push_back(level[t] * (1.0 + a));
+    limits.lower.push_back(level[t] * (1.0 - a));
   }
-  limits.first = 1.0 + 0.6 * std::sin(0.4);
+  limits.first = level[0];
   detail::OperatorTrajectories tr;
   detail::operator_trajectories(thr, init, rec.displacement, true, tr, &limits);
   using Jet = ceres::Jet<double, 2>;
-  MaxwellSlipParameters<Jet> p;
-  std::vector<Jet> start;
-  for (std::size_t i = 0; i < thr.size(); ++i) {
-    p.stiffness.push_back(Jet(1.0));
-    p.threshold.push_back(Jet(thr[i], 0));
-    start.push_back(Jet(init[i], 1));
-  }
-  MaxwellSlip<Jet> model(p);
-  model.reset(std::span<const Jet>(start), Jet(a));
+  MaxwellSlip<Jet> model = seeded_operators(thr, init, a);
   model.scale_state(Jet(limits.first));
   int at_upper = 0, at_lower = 0;
   for (std::size_t t = 0; t < rec.size(); ++t) {
     const double dx = t > 0 ? rec.displacement[t] - rec.displacement[t - 1] : 0.0;
-    const double level = 1.0 + 0.6 * std::sin(0.013 * static_cast<double>(t) + 0.4);
-    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0), Jet(level), Jet(a)});
+    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0), Jet(level[t]), Jet(a)});
     for (std::size_t i = 0; i < thr.size(); ++i) {
       const Jet& j = model.deflections()[i];
       const auto ti = static_cast<Eigen::Index>(t), ii = static_cast<Eigen::Index>(i);
