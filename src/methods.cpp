@@ -316,7 +316,11 @@ Json report_to_json(const IdentificationReport& rep) {
                       {"kind", s.kind},
                       {"start_percent", s.start_percent},
                       {"final_percent", s.final_percent},
-                      {"distinct", s.distinct}});
+                      {"distinct", s.distinct},
+                      {"start_thresholds", s.start_thresholds},
+                      {"final_thresholds", s.final_thresholds},
+                      {"iterations", s.iterations},
+                      {"seconds", s.seconds}});
   j["starts"] = starts;
   j["seconds"] = rep.seconds;
   j["noise"] = {{"sigma", rep.noise_sigma}, {"floor_percent", rep.noise_floor_percent}};
