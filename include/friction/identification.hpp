@@ -68,7 +68,7 @@ struct ConvergenceSummary {
 /// One start of the multi-start / global stage and where it ended.
 struct StartLog {
   std::size_t operators = 0;  ///< M of the fit
-  std::string kind;           ///< "force-quantiles", "geometric", "warm", "crs2-lm+bobyqa", ...
+  std::string kind;           ///< "dictionary", "warm", "moved", "restart", "crs2-lm+bobyqa", ...
   std::vector<double> start_thresholds;  ///< [m]
   double start_percent = 0;              ///< RSS/SSS % at the start (concentrated cost)
   double final_percent = 0;              ///< RSS/SSS % at the local minimum

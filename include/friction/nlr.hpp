@@ -48,23 +48,27 @@
 //    ill-conditioned; then O(M^3) active-set steps), the last point's trajectories, NNLS and projection kept so
 //    that Ceres' repeated requests at one point (line search, candidate, Jacobian) cost once, and
 //    storage reused between evaluations.
-//  * Starts (automatic, from the data): (a) "force-quantiles": Delta_j = u_j / 2 where u_j is the
-//    travel after the largest reversal at which the force has covered (j - 1/2)/M of its swing
-//    (2 Delta is the travel an operator needs to go from one bound to the other, so each
-//    operator starts where the force curve bends by its share); (b) "geometric": thresholds spread
-//    geometrically between the smallest start of (a) and half the presliding travel;
-//    (c) "warm": the M-1 solution with one threshold inserted in its largest log-gap.
-//  * Global stage: the cost is only piecewise smooth, and one start often ends in a worse local
-//    minimum (methods.md 8).  At a fixed M whenever the best start is above the noise floor, and in
-//    the order selection (where it would run for every M) when the starts end in minima that differ
-//    by more than `stall_tolerance` (relative), the best fit's operators are moved one at a time:
-//    each threshold is profiled over a log grid of [q, L] (8 points per decade) and over +-20 % of
-//    its value (1 % steps) with the others held and the stiffnesses re-solved, the best move of all
-//    is polished by Ceres, and sweeps repeat while they improve; then a restart from the
-//    initial-state estimate, in up to three rounds while they improve.  Deterministic, no random
-//    numbers.  Against the controlled random search it replaced (NLopt GN_CRS2_LM, 500 M
-//    evaluations per round): the strokes bench record's minimum 49 % lower, the NLR round-trip
-//    study as good (pooled coverage 299/320 against 298/320) in a third of the time.
+//  * Starts (automatic, from the data): (a) "dictionary": one NNLS over a dense grid of thresholds
+//    (16 per decade over [q, L]; each threshold the record does not wipe out at once from three
+//    initial states: virgin and either bound), accumulated as a Gram matrix in blocks of rows; the
+//    grid points it keeps gather around the thresholds the data hold and are merged into M
+//    operators (nlr.cpp, dictionary_start).  Only when it keeps none, (a') "force-quantiles":
+//    Delta_j = u_j / 2 where u_j is the travel after the largest reversal at which the force has
+//    covered (j - 1/2)/M of its swing, and "geometric": thresholds spread geometrically between
+//    the smallest of those and half the presliding travel.  (b) "warm": the M-1 solution with one
+//    threshold inserted in its largest log-gap (in the order selection, where it replaces (a) once
+//    M exceeds the dictionary's operators).
+//  * Global stage: the cost is only piecewise smooth, and one start can end in a worse local
+//    minimum (methods.md 8).  Whenever the best start is above the noise floor (at a fixed M and
+//    in the order selection), the best fit's operators are moved one at a time: each threshold is
+//    profiled over a log grid of [q, L] (8 points per decade) and over +-20 % of its value (1 %
+//    steps) with the others held and the stiffnesses re-solved (Gram products only), and the best
+//    move is polished by Ceres when its gain is significant (above the 0.999 quantile of a
+//    chi-square of 2 degrees of freedom, in noise variances); sweeps repeat while they improve;
+//    then a restart from the initial-state estimate, in up to three rounds while moves are taken.
+//    Deterministic, no random numbers.  Against the controlled random search it replaced (NLopt
+//    GN_CRS2_LM, 500 M evaluations per round): the strokes bench record's minimum 49 % lower, the
+//    NLR round-trip study as good (pooled coverage 299/320 against 298/320) in a third of the time.
 //    Every start, its cost before and after, and whether it found a new distinct minimum are
 //    logged.
 //  * Order: M = 1..max_operators, chosen by BIC = N ln(RSS/N) + 2M ln N on the estimation record
@@ -113,7 +117,7 @@ struct NlrOptions {
   std::size_t max_operators = 8;  ///< M = 1..max_operators are fitted and compared by BIC
   std::size_t operators = 0;      ///< > 0: fit this M only (no selection)
   NlrSolver solver = NlrSolver::VariableProjection;
-  bool global_stage = true;       ///< threshold moves (nlr.cpp) when the starts disagree
+  bool global_stage = true;       ///< threshold moves (nlr.cpp) above the noise floor
   double stall_tolerance = 0.01;  ///< relative difference of two minima that makes them distinct
   int max_iterations = 100;       ///< Ceres iterations per local search
   double function_tolerance = 1e-8;  ///< Ceres: stop when |cost change| / cost falls below
