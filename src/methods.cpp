@@ -172,6 +172,7 @@ IdentifiedModel identify_base(const std::string& type, const Record& r, const Me
     if (o.max_operators > 0) n.max_operators = o.max_operators;
     n.operators = o.operators;
     n.global_stage = o.global_stage;
+    n.threads = o.threads;
     NlrResult res = maxwell_slip_base(r, n, o);
     Json init = values_json(res.report.initial_deflections, "m");
     return {AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(res.parameters), none)),

@@ -6,7 +6,7 @@
 // some runs, or not at all on a quiet machine: so this test is also run under ThreadSanitizer
 // (scripts/run-tests.sh), which reports the race itself.  The diagnosis and LG's global stage
 // have their own tests of the same kind (test_diagnose, test_lg).  DNLRX takes NLR's report from
-// the thread that identified NLR, as in compare.
+// the thread that identified NLR, as in compare.  NLR runs the starts of one M concurrently.
 #include <gtest/gtest.h>
 
 #include <array>
@@ -80,6 +80,33 @@ TEST(Concurrency, TheThreeMethodsOnConcurrentThreadsGiveTheirSequentialResults) 
   }
   EXPECT_EQ(twins[0], alone[1]);
   EXPECT_EQ(twins[1], alone[1]);
+}
+
+TEST(Concurrency, NlrStartsOnSeveralThreadsGiveTheResultOfOne) {
+  // NLR's order selection runs the starts of each M concurrently (NlrOptions::threads): the
+  // model, the start log (every start's thresholds, costs and iterations) and the validation
+  // error must be those of one thread, bit for bit.
+  const std::filesystem::path data = std::filesystem::path(FRICTION_SOURCE_DIR) / "data";
+  const Record est = read_record(data / "estimation.csv").slice(0, 2000);
+  const Record val = read_record(data / "validation.csv").slice(0, 2000);
+  const auto run = [&](unsigned threads) {
+    MethodOptions o;
+    o.threads = threads;
+    const IdentifiedModel m = identify_model("maxwell-slip", est, o);
+    std::string log;
+    for (const StartLog& s : m.report.starts) {
+      char line[160];
+      std::snprintf(line, sizeof line, "%zu %s %a %a %d\n", s.operators, s.kind.c_str(),
+                    s.start_percent, s.final_percent, s.iterations);
+      log += line;
+    }
+    return fingerprint(m, validate_model(m.model, val)) + "\n" + log;
+  };
+  const std::string one = run(1);
+  EXPECT_NE(one.find(" dictionary "), std::string::npos) << one;
+  EXPECT_NE(one.find(" warm "), std::string::npos) << one;
+  EXPECT_EQ(run(2), one);
+  EXPECT_EQ(run(3), one);
 }
 
 }  // namespace

@@ -125,6 +125,9 @@ struct NlrOptions {
   /// The thorough initial-state refinement of the returned fit (nlr.cpp).  DNLRX turns it off in
   /// its order selection: it takes only NLR's minima per M and refines its own model.
   bool refine_initial_state = true;
+  /// The starts of one M (the warm and the dictionary start in the order selection) run on this
+  /// many threads (0: one per core); the result does not depend on it.
+  unsigned threads = 1;
 };
 
 struct NlrResult {
