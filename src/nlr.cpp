@@ -14,10 +14,10 @@
 #include <memory>
 #include <sstream>
 
-#include "friction/covariance_report.hpp"
-#include "friction/initial_state.hpp"
 #include "bounded_solver.hpp"
 #include "compressed_cost.hpp"
+#include "friction/covariance_report.hpp"
+#include "friction/initial_state.hpp"
 #include "parallel_for.hpp"
 #include "slip_regression.hpp"
 
@@ -751,8 +751,8 @@ void dictionary_operators(Data& d) {
   const std::size_t n = d.x.size();
   std::vector<double> thr(g);
   for (std::size_t j = 0; j < g; ++j)
-    thr[j] = d.sb.lo * std::pow(d.sb.hi / d.sb.lo,
-                                static_cast<double>(j) / static_cast<double>(g - 1));
+    thr[j] =
+        d.sb.lo * std::pow(d.sb.hi / d.sb.lo, static_cast<double>(j) / static_cast<double>(g - 1));
   // The first sample at which the range covers 2 thr[j] (n: never); thresholds increase, so the
   // indices do.
   std::vector<std::size_t> wiped(g, n);
@@ -797,8 +797,7 @@ void dictionary_operators(Data& d) {
   }
   if (rows > 0) gram.selfadjointView<Eigen::Lower>().rankUpdate(block.topRows(rows).transpose());
   Eigen::VectorXd scale(pi);
-  for (Eigen::Index c = 0; c < pi; ++c)
-    scale(c) = gram(c, c) > 0.0 ? std::sqrt(gram(c, c)) : 1.0;
+  for (Eigen::Index c = 0; c < pi; ++c) scale(c) = gram(c, c) > 0.0 ? std::sqrt(gram(c, c)) : 1.0;
   Eigen::MatrixXd scaled = gram.topLeftCorner(pi, pi).selfadjointView<Eigen::Lower>();
   scaled = scale.cwiseInverse().asDiagonal() * scaled * scale.cwiseInverse().asDiagonal();
   const Eigen::VectorXd atb = gram.row(pi).head(pi).transpose().cwiseQuotient(scale);
@@ -857,8 +856,8 @@ std::vector<double> dictionary_start(const Data& d, std::size_t m, double lo, do
   for (std::size_t a = 0; a < dict.size();) {
     std::size_t b = a + 1;
     while (b < dict.size() && dict[b].first <= dict[b - 1].first * d.dictionary_ratio * 1.0001) ++b;
-    const bool one = dict[b - 1].first <=
-                     dict[a].first * std::pow(d.dictionary_ratio, kRunSteps) * 1.0001;
+    const bool one =
+        dict[b - 1].first <= dict[a].first * std::pow(d.dictionary_ratio, kRunSteps) * 1.0001;
     for (std::size_t i = a; i < b; ++i) {
       const auto& [t, k] = dict[i];
       if (one && i > a)
@@ -978,7 +977,8 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
         d, d.sb.coordinates(thr), start_rho(d, thr), o,
         handed_over && !std::isfinite(previous_percent) ? d.floor_percent : previous_percent);
   });
-  for (std::size_t i = 0; i < starts.size(); ++i) record(starts[i].first, starts[i].second, fits[i]);
+  for (std::size_t i = 0; i < starts.size(); ++i)
+    record(starts[i].first, starts[i].second, fits[i]);
   if (o.operators > 0) refine_initial_state(d, best, o, false, rep);
 
   // A fit already at the noise floor cannot be improved beyond chance, so the (costly) global

@@ -464,10 +464,11 @@ TEST(Nlr, TheDictionaryStartAloneReachesTheFloorOnRandomSystems) {
     double x_prev = 0;
     for (std::size_t t = 0; t < n; ++t) {
       const double tt = ts * static_cast<double>(t);
-      const double env = 0.05 + 0.95 * std::pow(std::abs(std::sin(M_PI * envelope_periods *
-                                                                   static_cast<double>(t) /
-                                                                   static_cast<double>(n))),
-                                                  envelope_power);
+      const double env =
+          0.05 +
+          0.95 * std::pow(std::abs(std::sin(M_PI * envelope_periods * static_cast<double>(t) /
+                                            static_cast<double>(n))),
+                          envelope_power);
       double x = 0;
       for (int j = 0; j < 3; ++j) x += std::sin(2.0 * M_PI * f[j] * tt + phase[j]) / 3.0;
       x = q * std::round(travel * env * x / q);
@@ -490,9 +491,9 @@ TEST(Nlr, TheDictionaryStartAloneReachesTheFloorOnRandomSystems) {
     EXPECT_EQ(r.report.starts.front().kind, "dictionary");
     const double floor = static_cast<double>(n) * sigma * sigma;
     const double bound = floor * (1.0 + 4.0 * std::sqrt(2.0 / static_cast<double>(n)));
-    std::cout << "system " << sys_index << ": M = " << m << ", RSS / (N sigma^2) = "
-              << r.report.estimation.rss / floor << ", " << r.report.starts.size()
-              << " local searches\n";
+    std::cout << "system " << sys_index << ": M = " << m
+              << ", RSS / (N sigma^2) = " << r.report.estimation.rss / floor << ", "
+              << r.report.starts.size() << " local searches\n";
     EXPECT_LT(r.report.estimation.rss, bound) << "system " << sys_index << " (M = " << m << ")";
     at_floor += r.report.estimation.rss < bound;
     ASSERT_EQ(r.parameters.size(), m) << "system " << sys_index;

@@ -45,9 +45,9 @@
 //    which Levenberg-Marquardt takes the same steps as on the N projected residuals.
 //  * Cost of an evaluation: NNLS on the compressed P x P problem (the Cholesky factor of the
 //    Gram matrix, formed at matrix-product speed, or a Householder QR when the regressors are
-//    ill-conditioned; then O(M^3) active-set steps), the last point's trajectories, NNLS and projection kept so
-//    that Ceres' repeated requests at one point (line search, candidate, Jacobian) cost once, and
-//    storage reused between evaluations.
+//    ill-conditioned; then O(M^3) active-set steps), the last point's trajectories, NNLS and
+//    projection kept so that Ceres' repeated requests at one point (line search, candidate,
+//    Jacobian) cost once, and storage reused between evaluations.
 //  * Starts (automatic, from the data): (a) "dictionary": one NNLS over a dense grid of thresholds
 //    (16 per decade over [q, L]; each threshold the record does not wipe out at once from three
 //    initial states: virgin and either bound), accumulated as a Gram matrix in blocks of rows; the
