@@ -139,7 +139,7 @@ double lowest_sliding_speed(const Context& c, const ExtendedSlipFit& f) {
   MaxwellSlipParameters<double> base;
   std::vector<double> rho;
   for (std::size_t i = 0; i < f.base.size(); ++i)
-    if (f.base.stiffness[i] * f.base.threshold[i] >= c.sigma || f.base.size() == 1) {
+    if (f.base.stiffness[i] * f.base.threshold[i] >= c.sigma) {
       base.stiffness.push_back(f.base.stiffness[i]);
       base.threshold.push_back(f.base.threshold[i]);
       rho.push_back(f.rho[i]);

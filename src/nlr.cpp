@@ -595,6 +595,21 @@ std::vector<double> clamp_sorted(std::vector<double> t, double lo, double hi) {
   return t;
 }
 
+// Sorted thresholds `t` with one more at the geometric middle of their largest log-gap, the range
+// extended to a quarter of the smallest and four times the largest (within [lo, hi]).
+std::vector<double> with_one_in_largest_gap(std::vector<double> t, double lo, double hi) {
+  std::vector<double> ext;
+  ext.push_back(std::max(lo, t.front() / 4.0));
+  ext.insert(ext.end(), t.begin(), t.end());
+  ext.push_back(std::min(hi, t.back() * 4.0));
+  std::size_t gap = 0;
+  double widest = 0;
+  for (std::size_t i = 0; i + 1 < ext.size(); ++i)
+    if (ext[i + 1] / ext[i] > widest) widest = ext[i + 1] / ext[i], gap = i;
+  t.push_back(std::sqrt(ext[gap] * ext[gap + 1]));
+  return clamp_sorted(std::move(t), lo, hi);
+}
+
 struct Scales {
   double q, travel, presliding;
 };
@@ -884,19 +899,9 @@ std::vector<double> dictionary_start(const Data& d, std::size_t m, double lo, do
   }
   std::vector<double> thr;
   for (const Cluster& x : c) thr.push_back(x.threshold());
-  while (thr.size() < m) {
-    std::vector<double> ext;
-    ext.push_back(std::max(lo, thr.front() / 4.0));
-    ext.insert(ext.end(), thr.begin(), thr.end());
-    ext.push_back(std::min(hi, thr.back() * 4.0));
-    std::size_t gap = 0;
-    double widest = 0;
-    for (std::size_t i = 0; i + 1 < ext.size(); ++i)
-      if (ext[i + 1] / ext[i] > widest) widest = ext[i + 1] / ext[i], gap = i;
-    thr.push_back(std::sqrt(ext[gap] * ext[gap + 1]));
-    std::sort(thr.begin(), thr.end());
-  }
-  return clamp_sorted(thr, lo, hi);
+  thr = clamp_sorted(std::move(thr), lo, hi);
+  while (thr.size() < m) thr = with_one_in_largest_gap(std::move(thr), lo, hi);
+  return thr;
 }
 
 // Fit M operators from the automatic starts, with the global stage when they disagree.
@@ -930,21 +935,8 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
                                           static_cast<double>(j) / static_cast<double>(m - 1));
     starts.emplace_back("geometric", clamp_sorted(geo, sc.q, sc.travel));
   }
-  if (previous && !previous->empty()) {
-    std::vector<double> ext;
-    ext.push_back(std::max(sc.q, previous->front() / 4.0));
-    ext.insert(ext.end(), previous->begin(), previous->end());
-    ext.push_back(std::min(sc.travel, previous->back() * 4.0));
-    std::size_t best_gap = 0;
-    double ratio = 0;
-    for (std::size_t g = 0; g + 1 < ext.size(); ++g)
-      if (ext[g + 1] / ext[g] > ratio) ratio = ext[g + 1] / ext[g], best_gap = g;
-    std::vector<double> warm = *previous;
-    warm.push_back(std::sqrt(ext[best_gap] * ext[best_gap + 1]));
-    // First: it starts at the (M-1)-operator minimum, so it sets the target that lets the other
-    // starts stop early when they cannot reach it (HopelessSearch).
-    starts.insert(starts.begin(), {"warm", clamp_sorted(warm, sc.q, sc.travel)});
-  }
+  if (previous && !previous->empty())  // first in the start log: the (M-1) minimum extended
+    starts.insert(starts.begin(), {"warm", with_one_in_largest_gap(*previous, sc.q, sc.travel)});
 
   Fit best;
   std::vector<double> minima;
