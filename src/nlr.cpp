@@ -555,9 +555,15 @@ StartLog start_log(const Data& d, std::string kind, std::vector<double> start, c
 // fixed M, and thoroughly once for the M that is returned (during the order selection only that
 // one: the quick passes at every M made DNLRX's selection about 0.5 s slower on its benchmark
 // record, where it selected the same model with them and without them).
+//
+// `at_best` (may be null) receives the last estimate [m] when it belongs to the fit returned in
+// `best` (the usual end: the estimate at the polished fit's parameters no longer pays for another
+// polish), and is cleared otherwise; the report's free run then takes it instead of repeating the
+// same global search (on the multisine bench record a third of NLR's initial-state time).
 void refine_initial_state(const Data& d, Fit& best, const NlrOptions& o, bool thorough,
-                          IdentificationReport& rep) {
+                          IdentificationReport& rep, std::vector<double>* at_best = nullptr) {
   const std::size_t m = best.s.size();
+  if (at_best) at_best->clear();
   for (int pass = 0; pass < 3; ++pass) {
     const std::vector<double> thr = d.sb.thresholds(best.s);
     if (best.k.size() != static_cast<Eigen::Index>(m) || best.k.norm() == 0.0) return;
@@ -567,6 +573,7 @@ void refine_initial_state(const Data& d, Fit& best, const NlrOptions& o, bool th
     const auto init = estimate_initial_deflections(
         d.x, std::span<const double>(d.y.data(), static_cast<std::size_t>(d.y.size())), thr, filter,
         guess, thorough ? InitialStateOptions{} : InitialStateOptions::quick());
+    if (at_best) *at_best = init;
     std::vector<double> rho(m);
     for (std::size_t i = 0; i < m; ++i) rho[i] = std::clamp(init[i] / thr[i], -1.0, 1.0);
     if (rho == best.rho) return;
@@ -586,6 +593,7 @@ void refine_initial_state(const Data& d, Fit& best, const NlrOptions& o, bool th
     ++rep.convergence.local_searches;
     if (!(f.percent < best.percent * (1.0 - 1e-6))) return;
     best = f;
+    if (at_best) at_best->clear();
   }
 }
 
@@ -1149,7 +1157,8 @@ NlrResult identify(std::span<const double> time, std::span<const double> x,
   // The thorough initial-state refinement, once, for the selected M (it is the costly one: a
   // global search of the initial state; the order comparison above does not need it).
   Fit& best = fits[best_index];
-  if (o.refine_initial_state) refine_initial_state(d, best, o, true, rep);
+  std::vector<double> estimated;  // the thorough estimate at best's parameters, when it has one
+  if (o.refine_initial_state) refine_initial_state(d, best, o, true, rep, &estimated);
 
   // The model: operators whose stiffness went to the bound 0 are removed.
   const std::vector<double> thr = d.sb.thresholds(best.s);
@@ -1187,7 +1196,22 @@ NlrResult identify(std::span<const double> time, std::span<const double> x,
     const Eigen::VectorXd fhat = tr.delta * k;
     rep.estimation_simulated.assign(fhat.data(), fhat.data() + fhat.size());
   } else {
-    rep.initial_deflections = estimate_initial_deflections(p, x, force, guess);
+    // The routine validation uses, on the scaled force as refine_initial_state runs it (the same
+    // estimate, which that refinement usually has made already), unless the caller asked for no
+    // initial-state search (DNLRX's order selection, which uses only the minima per M): then the
+    // fit's own initial state.
+    if (!estimated.empty() && m == thr.size()) {
+      rep.initial_deflections = std::move(estimated);
+    } else if (o.refine_initial_state) {
+      Eigen::MatrixXd filter(static_cast<Eigen::Index>(m), 1);
+      for (std::size_t i = 0; i < m; ++i)
+        filter(static_cast<Eigen::Index>(i), 0) = p.stiffness[i] / d.scale;
+      rep.initial_deflections = estimate_initial_deflections(
+          x, std::span<const double>(d.y.data(), static_cast<std::size_t>(d.y.size())),
+          p.threshold, filter, guess);
+    } else {
+      rep.initial_deflections = guess;
+    }
     MaxwellSlip<double> model(p);
     model.reset(std::span<const double>(rep.initial_deflections));
     rep.estimation_simulated.resize(x.size());

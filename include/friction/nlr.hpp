@@ -25,7 +25,7 @@
 //    beyond the travel.
 //  * Initial state: rho is optimised with the thresholds (box [-1, 1]); the reported errors use
 //    estimate_initial_deflections (initial_state.hpp) with the final parameters, the same routine
-//    validation uses.
+//    validation uses (with refine_initial_state off, the fit's own rho instead).
 //  * Jacobian: exact Golub-Pereyra derivative of the projected residual (both terms, not Kaufman's
 //    approximation), built from d delta_i / d Delta_i and d delta_i / d delta_i(0): the numbers
 //    one run of MaxwellSlip<ceres::Jet<double, 2>> gives (autodiff through the slip recursion),
@@ -123,7 +123,8 @@ struct NlrOptions {
   double function_tolerance = 1e-8;  ///< Ceres: stop when |cost change| / cost falls below
   bool covariance = true;            ///< standard errors and correlations
   /// The thorough initial-state refinement of the returned fit (nlr.cpp).  DNLRX turns it off in
-  /// its order selection: it takes only NLR's minima per M and refines its own model.
+  /// its order selection: it takes only NLR's minima per M and refines its own model.  Off, the
+  /// report's estimation errors are those of the fit's own initial state (no global search).
   bool refine_initial_state = true;
   /// The starts of one M (the warm and the dictionary start in the order selection) run on this
   /// many threads (0: one per core); the result does not depend on it.
