@@ -80,28 +80,50 @@ class OneOperator {
       std::tie(p.tau, p.top) = saturation(0.5 * (p.lo + p.hi));
       pieces_.push_back(p);
     }
+    // The samples at which minimise needs its prefix sums (each piece's first saturation) and
+    // suffix sums (where its lag window ends): they do not depend on y.
+    marks_ = {0, n_};
+    for (const Piece& pc : pieces_) {
+      marks_.push_back(pc.tau);
+      marks_.push_back(std::min(n_, pc.tau + lags_));
+    }
+    std::sort(marks_.begin(), marks_.end());
+    marks_.erase(std::unique(marks_.begin(), marks_.end()), marks_.end());
+    const auto mark = [&](Eigen::Index t) {
+      return static_cast<std::size_t>(std::lower_bound(marks_.begin(), marks_.end(), t) -
+                                      marks_.begin());
+    };
+    for (Piece& pc : pieces_) {
+      pc.tau_mark = mark(pc.tau);
+      pc.end_mark = mark(std::min(n_, pc.tau + lags_));
+    }
   }
 
   /// Global minimiser over d of sum_t (y(t) - sum_j taps_j delta(t-j; d))^2.
   double minimise(const Eigen::VectorXd& y) const {
-    Eigen::VectorXd p1(n_ + 1), p2(n_ + 1), s_top(n_ + 1), s_bottom(n_ + 1);
-    p1(0) = p2(0) = 0.0;
-    for (Eigen::Index t = 0; t < n_; ++t) {
-      const double r = y(t) - eta_(t);
-      p1(t + 1) = p1(t) + r;
-      p2(t + 1) = p2(t) + r * r;
+    // Prefix sums of r = y - eta and r^2, and suffix sums of the squared residuals of either
+    // reference trajectory, at the marks only: each segment between marks is a vectorised
+    // reduction (a running sum over every sample is a chain of dependent additions, which was
+    // most of this function's time).
+    const std::size_t nm = marks_.size();
+    std::vector<double> p1(nm, 0.0), p2(nm, 0.0), s_top(nm, 0.0), s_bottom(nm, 0.0);
+    for (std::size_t k = 0; k + 1 < nm; ++k) {
+      const Eigen::Index a = marks_[k], len = marks_[k + 1] - a;
+      const auto r = y.segment(a, len) - eta_.segment(a, len);
+      p1[k + 1] = p1[k] + r.sum();
+      p2[k + 1] = p2[k] + r.squaredNorm();
     }
-    s_top(n_) = s_bottom(n_) = 0.0;
-    for (Eigen::Index t = n_ - 1; t >= 0; --t) {
-      s_top(t) = s_top(t + 1) + (y(t) - f_top_(t)) * (y(t) - f_top_(t));
-      s_bottom(t) = s_bottom(t + 1) + (y(t) - f_bottom_(t)) * (y(t) - f_bottom_(t));
+    for (std::size_t k = nm - 1; k-- > 0;) {
+      const Eigen::Index a = marks_[k], len = marks_[k + 1] - a;
+      s_top[k] = s_top[k + 1] + (y.segment(a, len) - f_top_.segment(a, len)).squaredNorm();
+      s_bottom[k] = s_bottom[k + 1] + (y.segment(a, len) - f_bottom_.segment(a, len)).squaredNorm();
     }
     double best_d = 0.0, best_cost = std::numeric_limits<double>::infinity();
     for (const Piece& pc : pieces_) {
       // cost(d) = qa d^2 + qb d + qc on [lo, hi]
       double qa = big_theta_ * big_theta_ * static_cast<double>(pc.tau);
-      double qb = -2.0 * big_theta_ * p1(pc.tau);
-      double qc = p2(pc.tau);
+      double qb = -2.0 * big_theta_ * p1[pc.tau_mark];
+      double qc = p2[pc.tau_mark];
       const Eigen::VectorXd& ref = pc.top ? ref_top_ : ref_bottom_;
       const Eigen::Index end = std::min(n_, pc.tau + lags_);
       for (Eigen::Index t = pc.tau; t < end; ++t) {
@@ -118,7 +140,7 @@ class OneOperator {
         qb += -2.0 * alpha * r;
         qc += r * r;
       }
-      qc += (pc.top ? s_top : s_bottom)(end);
+      qc += (pc.top ? s_top : s_bottom)[pc.end_mark];
       const double d =
           qa > 0.0 ? std::clamp(-qb / (2.0 * qa), pc.lo, pc.hi) : (qb > 0.0 ? pc.lo : pc.hi);
       const double c = (qa * d + qb) * d + qc;
@@ -192,12 +214,14 @@ class OneOperator {
     double lo, hi;
     Eigen::Index tau;
     bool top;
+    std::size_t tau_mark = 0, end_mark = 0;  // positions of tau and of its lag end in marks_
   };
   Eigen::Index n_, lags_;
   double threshold_, big_theta_;
   Eigen::RowVectorXd taps_;
   Eigen::VectorXd xi_, eta_, ref_top_, ref_bottom_, f_top_, f_bottom_, run_max_, run_min_;
   std::vector<Piece> pieces_;
+  std::vector<Eigen::Index> marks_;  // sorted, from 0 to n
 };
 
 }  // namespace
