@@ -120,7 +120,9 @@ struct NlrOptions {
   bool global_stage = true;       ///< threshold moves (nlr.cpp) above the noise floor
   double stall_tolerance = 0.01;  ///< relative difference of two minima that makes them distinct
   int max_iterations = 100;       ///< Ceres iterations per local search
-  double function_tolerance = 1e-8;  ///< Ceres: stop when |cost change| / cost falls below
+  /// Ceres: stop when |cost change| / cost falls below; 0: 0.01 / N (a step that lowers the RSS by
+  /// less than 1 % of one residual variance)
+  double function_tolerance = 0.0;
   bool covariance = true;            ///< standard errors and correlations
   /// The thorough initial-state refinement of the returned fit (nlr.cpp).  DNLRX turns it off in
   /// its order selection: it takes only NLR's minima per M and refines its own model.  Off, the
