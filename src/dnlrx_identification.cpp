@@ -273,7 +273,8 @@ Reoptimised reoptimise(const Series& r, const Orders& o, const detail::StickBrea
   so.linear_solver_type = ceres::DENSE_QR;
   so.use_nonmonotonic_steps = true;
   so.max_num_iterations = max_iterations;
-  so.function_tolerance = 1e-9;
+  // Within about a tenth of a standard error of the minimum, as NLR's searches (nlr.cpp).
+  so.function_tolerance = 0.01 / static_cast<double>(r.y.size());
   so.parameter_tolerance = 1e-10;
   so.num_threads = 1;
   so.logging_type = ceres::SILENT;
