@@ -342,8 +342,9 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
   options.minimizer_progress_to_stdout = false;
-  // A relative cost change of 1e-7 is 1e-3 BIC units at N = 1e4: far below any decision here.
-  options.function_tolerance = 1e-7;
+  // A step that lowers the RSS by less than 1 % of one residual variance (0.01 BIC units) ends
+  // the search, as NLR's (nlr.cpp): far below any decision here.
+  options.function_tolerance = 0.01 / static_cast<double>(r.size());
   options.parameter_tolerance = 1e-9;
   detail::use_value_only_line_search(options);
   ceres::Solver::Summary summary;
