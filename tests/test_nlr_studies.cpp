@@ -8,8 +8,8 @@
 #include <random>
 #include <vector>
 
-#include "friction/record.hpp"
 #include "friction/nlr.hpp"
+#include "friction/record.hpp"
 
 namespace test_nlr_studies {
 namespace {

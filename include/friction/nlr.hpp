@@ -123,7 +123,7 @@ struct NlrOptions {
   /// Ceres: stop when |cost change| / cost falls below; 0: 0.01 / N (a step that lowers the RSS by
   /// less than 1 % of one residual variance)
   double function_tolerance = 0.0;
-  bool covariance = true;            ///< standard errors and correlations
+  bool covariance = true;  ///< standard errors and correlations
   /// The thorough initial-state refinement of the returned fit (nlr.cpp).  DNLRX turns it off in
   /// its order selection: it takes only NLR's minima per M and refines its own model.  Off, the
   /// report's estimation errors are those of the fit's own initial state (no global search).
