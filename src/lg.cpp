@@ -694,6 +694,16 @@ bool LgCostFunction::Evaluate(double const* const* parameters, double* residuals
   using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   try {
     const bool want_j = jacobians && (jacobians[0] || jacobians[1]);
+    if (want_j && jacobian_ == LgJacobian::Cvodes && memo_.parameters.size() == kP + 1 &&
+        std::equal(parameters[0], parameters[0] + kP, memo_.parameters.begin()) &&
+        parameters[1][0] == memo_.parameters[kP]) {
+      std::copy(memo_.residuals.begin(), memo_.residuals.end(), residuals);
+      if (jacobians[0])
+        std::copy(memo_.jacobian_theta.begin(), memo_.jacobian_theta.end(), jacobians[0]);
+      if (jacobians[1])
+        std::copy(memo_.jacobian_state.begin(), memo_.jacobian_state.end(), jacobians[1]);
+      return true;
+    }
     if (want_j) ++jacobian_evaluations_;
     if (want_j && jacobian_ == LgJacobian::ExactStep) {
       using Jet = ceres::Jet<double, kP + 1>;
@@ -722,13 +732,25 @@ bool LgCostFunction::Evaluate(double const* const* parameters, double* residuals
         if (jacobians[1])
           for (std::size_t k = 0; k < n; ++k)
             jacobians[1][k] = -sim.initial_state_derivative[k] * z_ref_ / scale_;
+        memo_.parameters.assign(parameters[0], parameters[0] + kP);
+        memo_.parameters.push_back(parameters[1][0]);
+        memo_.residuals.assign(residuals, residuals + n);
+        memo_.jacobian_theta.clear();
+        memo_.jacobian_state.clear();
+        if (jacobians[0]) memo_.jacobian_theta.assign(jacobians[0], jacobians[0] + n * kP);
+        if (jacobians[1]) memo_.jacobian_state.assign(jacobians[1], jacobians[1] + n);
+        // Only a complete record answers a later request (which may want either block).
+        if (!jacobians[0] || !jacobians[1]) memo_.parameters.clear();
       }
     }
   } catch (const Error&) {
     return false;  // an unusable trial point: Ceres shrinks its trust region
   }
   for (std::size_t k = 0; k < n; ++k)
-    if (!std::isfinite(residuals[k])) return false;
+    if (!std::isfinite(residuals[k])) {
+      memo_.parameters.clear();
+      return false;
+    }
   return true;
 }
 
@@ -878,6 +900,7 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
   std::vector<double> log_theta(best.v.begin(), best.v.begin() + kP);
   double u = best.v[kP];
   ceres::Solver::Summary summary;
+  LgCostFunction::Memo final_jacobian;  // Ceres' last Jacobian, at its final point
   {
     ceres::Problem problem;
     auto* cost = new LgCostFunction(time, x, force, scale, z_ref, o.shape, o.jacobian, o.cvodes);
@@ -908,6 +931,7 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
     ceres::Solve(so, &problem, &summary);
     ++local_searches;
     result.timings.jacobian_evaluations = cost->jacobian_evaluations();
+    final_jacobian = cost->take_memo();
     lap(result.timings.local);
   }
   result.parameters = from_log(log_theta, o.shape);
@@ -1012,11 +1036,16 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
       rep.warnings.push_back(w.str());
     }
 
+    // At the fit's own point (Ceres' parameters and initial state, which the free run's estimate
+    // of the state differs from in the last digits), where Ceres' last Jacobian already is.
+    std::vector<double> lt_fit = log_theta;
+    double u_fit = u;
+    auto* fit_cost =
+        new LgCostFunction(time, x, force, scale, z_ref, o.shape, o.jacobian, o.cvodes);
+    fit_cost->reuse(std::move(final_jacobian));
     ceres::Problem problem;
-    problem.AddResidualBlock(
-        new LgCostFunction(time, x, force, scale, zr, o.shape, o.jacobian, o.cvodes), nullptr,
-        lt.data(), &u_final);
-    problem.SetParameterBlockConstant(&u_final);
+    problem.AddResidualBlock(fit_cost, nullptr, lt_fit.data(), &u_fit);
+    problem.SetParameterBlockConstant(&u_fit);
     ceres::Covariance::Options co;
     co.algorithm_type = ceres::DENSE_SVD;
     co.null_space_rank = -1;  // pseudo-inverse: drop directions below the tolerance
@@ -1026,8 +1055,10 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
     Eigen::Matrix<double, kP, kP, Eigen::RowMajor> c;
     bool ok = false;
     try {
-      const std::vector<std::pair<const double*, const double*>> blocks{{lt.data(), lt.data()}};
-      ok = cov.Compute(blocks, &problem) && cov.GetCovarianceBlock(lt.data(), lt.data(), c.data());
+      const std::vector<std::pair<const double*, const double*>> blocks{
+          {lt_fit.data(), lt_fit.data()}};
+      ok = cov.Compute(blocks, &problem) &&
+           cov.GetCovarianceBlock(lt_fit.data(), lt_fit.data(), c.data());
     } catch (const std::exception&) {
       ok = false;
     }

@@ -223,6 +223,18 @@ class LgCostFunction final : public ceres::CostFunction {
   /// Evaluations with a Jacobian so far.
   int jacobian_evaluations() const noexcept { return jacobian_evaluations_; }
 
+  /// The last evaluation with a Jacobian: its parameters and outputs.  Ceres' last Jacobian is
+  /// that of its final point (it evaluates one at every accepted step only), which is where the
+  /// covariance needs one: handed to the covariance's cost function (`reuse`), that evaluation
+  /// answers it instead of a second CVODES run with sensitivities (half of LG's time on a record
+  /// whose global stage already ended at the minimum).  Answers only the same parameters, bit for
+  /// bit.
+  struct Memo {
+    std::vector<double> parameters, residuals, jacobian_theta, jacobian_state;
+  };
+  Memo take_memo() { return std::move(memo_); }
+  void reuse(Memo memo) { memo_ = std::move(memo); }
+
  private:
   std::span<const double> time_, x_, force_;
   std::vector<Motion<double>> motions_;
@@ -231,6 +243,7 @@ class LgCostFunction final : public ceres::CostFunction {
   LgJacobian jacobian_;
   CvodesOptions cvodes_;
   mutable int jacobian_evaluations_ = 0;
+  mutable Memo memo_;
 };
 
 }  // namespace friction
