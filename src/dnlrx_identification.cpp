@@ -273,8 +273,7 @@ Reoptimised reoptimise(const Series& r, const Orders& o, const detail::StickBrea
   so.linear_solver_type = ceres::DENSE_QR;
   so.use_nonmonotonic_steps = true;
   so.max_num_iterations = max_iterations;
-  // Within about a tenth of a standard error of the minimum, as NLR's searches (nlr.cpp).
-  so.function_tolerance = 0.01 / static_cast<double>(r.y.size());
+  so.function_tolerance = detail::resolved_function_tolerance(static_cast<std::size_t>(r.y.size()));
   so.parameter_tolerance = 1e-10;
   so.num_threads = 1;
   so.logging_type = ceres::SILENT;

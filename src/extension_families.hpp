@@ -418,7 +418,7 @@ FamilyFit fit_family(const Record& r, const Family& family, const std::vector<do
   options.max_num_iterations = max_iterations;
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
-  options.function_tolerance = 0.01 / static_cast<double>(r.size());  // as extension_fit.cpp's
+  options.function_tolerance = detail::resolved_function_tolerance(r.size());
   options.parameter_tolerance = 1e-9;
   detail::use_value_only_line_search(options);
   ceres::Solver::Summary summary;

@@ -342,9 +342,8 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   options.num_threads = 1;
   options.logging_type = ceres::SILENT;
   options.minimizer_progress_to_stdout = false;
-  // A step that lowers the RSS by less than 1 % of one residual variance (0.01 BIC units) ends
-  // the search, as NLR's (nlr.cpp): far below any decision here.
-  options.function_tolerance = 0.01 / static_cast<double>(r.size());
+  // 0.01 BIC units per step: far below any decision here.
+  options.function_tolerance = detail::resolved_function_tolerance(r.size());
   options.parameter_tolerance = 1e-9;
   detail::use_value_only_line_search(options);
   ceres::Solver::Summary summary;

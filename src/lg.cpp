@@ -18,6 +18,7 @@
 #include <sstream>
 #include <utility>
 
+#include "bounded_solver.hpp"
 #include "friction/covariance_report.hpp"
 #include "friction/error.hpp"
 #include "friction/motion.hpp"
@@ -914,13 +915,7 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
     ceres::Solver::Options so;
     so.linear_solver_type = ceres::DENSE_QR;
     so.max_num_iterations = o.max_iterations;
-    // Stop once a step lowers the RSS by less than 1 % of one residual variance (RSS / N): near
-    // the minimum the remaining decrease is about delta^2 residual variances for a distance of
-    // delta standard errors, so the fit is then within a tenth of a standard error of it.  (The
-    // fixed 1e-8 before was 100x tighter at N = 10^4: on data/ LM spent 8 of its 16 iterations,
-    // 0.8 of 1.65 s, changing the RSS by 4e-5 of itself; on the LuGre round-trip study the same
-    // z-scores to three digits either way.)
-    so.function_tolerance = 0.01 / nd;
+    so.function_tolerance = detail::resolved_function_tolerance(n);
     so.gradient_tolerance = 1e-12;
     so.parameter_tolerance = 1e-9;
     so.num_threads = 1;
