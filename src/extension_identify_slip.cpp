@@ -222,9 +222,10 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
   // BIC stopped at 6 operators where the system's twin without the delay took 8 (2.05 times the
   // floor on a discovery-study record).
   std::vector<double> x;
-  delayed_displacement_into(std::span<const double>(r.time),
-                            std::span<const double>(r.displacement),
-                            cur.ext.delay ? cur.ext.delay->delay : 0.0, x);
+  delayed_displacement_into(
+      std::span<const double>(r.time), std::span<const double>(r.displacement),
+      cur.ext.delay ? cur.ext.delay->delay : 0.0, x,
+      cur.ext.delay ? delay_edge_length(record_derivative_windows(r.time, r.displacement)) : 0);
   const PiecesAlongRun run = pieces_along_run(r, cur);
   std::optional<ExtendedSlipFit> best;
   auto consider = [&](const NlrResult& nr, std::vector<double> rho, bool level) {

@@ -1,6 +1,8 @@
 // The extension pieces of methods.md section 7 around the base models.
 #include <gtest/gtest.h>
 
+#include <Eigen/QR>
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -257,27 +259,55 @@ TEST(Extensions, NormalLoadMakesFrictionProportionalToTheNormalForce) {
   EXPECT_THROW(run(m, time, x), friction::InvalidParameter);  // needs the normal force
 }
 
+// The quadratic through the first sample whose slope and curvature fit the first `length` samples
+// by least squares, evaluated at t (held at its value length - 1 samples before the record beyond
+// that): what a delay's displacement before the record must be (extensions.hpp, Delay), written
+// here with Eigen's QR.
+double front_quadratic(const std::vector<double>& time, const std::vector<double>& x,
+                       std::size_t length, double t) {
+  Eigen::MatrixXd v(static_cast<Eigen::Index>(length - 1), 2);
+  Eigen::VectorXd y(static_cast<Eigen::Index>(length - 1));
+  for (std::size_t i = 1; i < length; ++i) {
+    const double u = time[i] - time[0];
+    v.row(static_cast<Eigen::Index>(i - 1)) << u, u * u;
+    y(static_cast<Eigen::Index>(i - 1)) = x[i] - x[0];
+  }
+  const Eigen::Vector2d c = v.householderQr().solve(y);
+  const double u = std::max(t - time[0], time[0] - time[length - 1]);
+  return x[0] + u * (c(0) + u * c(1));
+}
+
 TEST(Extensions, DelayShiftsTheForceInTime) {
   std::vector<double> time, x;
   friction::testing::test_excitation(1500, 1e-3, 20e-6, time, x);
-  const auto f0 = base_force(time, x);
+  const std::size_t edge =
+      friction::delay_edge_length(friction::record_derivative_windows(time, x));
+  ASSERT_GE(edge, 3u);
+  // Five samples: the base on x[k - 5], and before the record on the motion the record's first
+  // samples extrapolate.
   ExtensionParameters<double> p;
-  p.delay = {{5e-3}};  // five samples
+  p.delay = {{5e-3}};
   auto m = extended(p);
   const auto f = run(m, time, x);
-  for (std::size_t k = 0; k < 5; ++k) EXPECT_EQ(f[k], 0.0);
-  for (std::size_t k = 5; k < x.size(); ++k) ASSERT_NEAR(f[k], f0[k - 5], 1e-14) << k;
+  std::vector<double> shifted(x.size());
+  for (std::size_t k = 0; k < x.size(); ++k)
+    shifted[k] = k >= 5 ? x[k - 5] : front_quadratic(time, x, edge, time[k] - 5e-3);
+  const auto f5 = base_force(time, shifted);
+  for (std::size_t k = 0; k < x.size(); ++k) ASSERT_NEAR(f[k], f5[k], 1e-14) << k;
 
   // A fractional delay on a record is the base on the displacement interpolated by cubics (midway
   // between samples: (-x_{j-1} + 9 x_j + 9 x_{j+1} - x_{j+2}) / 16; linearly in the first
-  // interval); the per-sample (causal, ring-buffer) path interpolates linearly.
+  // interval); the per-sample (causal, ring-buffer) path interpolates linearly and holds the first
+  // sample before the record.
   p.delay->delay = 2.5e-3;
   auto fractional = extended(p);
   const auto fr = run(fractional, time, x);
   std::vector<double> cubic(x.size()), linear(x.size());
   for (std::size_t k = 0; k < x.size(); ++k) {
     linear[k] = k < 3 ? x[0] : 0.5 * (x[k - 2] + x[k - 3]);
-    cubic[k] = k < 4 ? linear[k] : (-x[k - 4] + 9 * x[k - 3] + 9 * x[k - 2] - x[k - 1]) / 16;
+    cubic[k] = k < 3   ? front_quadratic(time, x, edge, time[k] - 2.5e-3)
+               : k < 4 ? linear[k]
+                       : (-x[k - 4] + 9 * x[k - 3] + 9 * x[k - 2] - x[k - 1]) / 16;
   }
   const auto expected = base_force(time, cubic);
   for (std::size_t k = 0; k < x.size(); ++k) ASSERT_NEAR(fr[k], expected[k], 1e-12) << k;
@@ -287,6 +317,44 @@ TEST(Extensions, DelayShiftsTheForceInTime) {
   const auto expected_causal = base_force(time, linear);
   for (std::size_t k = 0; k < x.size(); ++k)
     ASSERT_NEAR(per_sample[k], expected_causal[k], 1e-14) << k;
+}
+
+// The motion before (and, for a negative delay, after) the record is the quadratic its edge
+// samples fit: exact on a quadratic motion, for either sign of D, within the fit's own length;
+// beyond it the value there is held.  Held at the edge sample, the first D / Ts forces of a record
+// stood still where the recorded ones moved, and a fitted delay came out short by z = 2-6.
+TEST(Extensions, ADelayExtrapolatesTheMotionBeyondTheRecord) {
+  const double ts = 1e-3;
+  auto motion = [](double t) { return 1e-5 + 2e-4 * t - 3e-2 * t * t; };
+  std::vector<double> time(200), x(200);
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    time[k] = 0.3 + ts * static_cast<double>(k);
+    x[k] = motion(time[k]);
+  }
+  const std::size_t edge = 7;
+  for (double d : {4.5e-3, -3.25e-3, 6e-3}) {
+    const auto xs = friction::delayed_displacement(std::span<const double>(time),
+                                                   std::span<const double>(x), d, edge);
+    for (std::size_t k = 0; k < x.size(); ++k) {
+      const double target = time[k] - d;
+      // Linear in the first and last interval (a quadratic's chord there), exact elsewhere.
+      const bool first = target > time[0] && target < time[1];
+      const bool last = target > time[x.size() - 2] && target < time.back();
+      const std::size_t j = first ? 0 : x.size() - 2;
+      const double w = (target - time[j]) / ts;
+      const double expected = first || last ? x[j] + w * (x[j + 1] - x[j]) : motion(target);
+      ASSERT_NEAR(xs[k], expected, 1e-15) << "D " << d << " k " << k;
+    }
+  }
+  // Twelve samples before the record with a 7-sample fit: held at t_0 - 6 Ts.
+  const auto far = friction::delayed_displacement(std::span<const double>(time),
+                                                  std::span<const double>(x), 12e-3, edge);
+  for (std::size_t k = 0; k <= 6; ++k) EXPECT_NEAR(far[k], motion(time[0] - 6 * ts), 1e-15) << k;
+  for (std::size_t k = 7; k < 12; ++k) EXPECT_NEAR(far[k], motion(time[k] - 12e-3), 1e-15) << k;
+  // edge_length 0: the old hold at the edge sample.
+  const auto held = friction::delayed_displacement(std::span<const double>(time),
+                                                   std::span<const double>(x), 4.5e-3);
+  for (std::size_t k = 0; k <= 4; ++k) EXPECT_EQ(held[k], x[0]) << k;
 }
 
 TEST(Extensions, NoPiecesIsTheBaseModel) {

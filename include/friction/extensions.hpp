@@ -83,13 +83,14 @@
 // term and about m Ts j from an inertia term (j the jerk).
 //
 // Delay.  On a record the displacement at t_k - D is interpolated by the cubic through the four
-// samples around it (linearly in the first and last interval; held at the first / last sample
-// outside the record), for either sign of D; velocity and acceleration are then differentiated
-// from the shifted record.  Per sample (causal, D >= 0 only; a negative delay is ignored there) a
-// ring of the last `delay_capacity` samples (allocated at construction) interpolates x and the
-// provided acceleration linearly (the cubic would need a sample that has not come yet when D is
-// below two samples); a delay longer than the ring holds the oldest sample.  The two differ by
-// about w (1 - w) Ts^2 a / 2 in x (w the fraction of the interval).
+// samples around it (linearly in the first and last interval), for either sign of D; outside the
+// record it is extrapolated by the quadratic through the edge sample fitted to the samples there
+// (EdgePolynomial); velocity and acceleration are then differentiated from the shifted record.  Per
+// sample (causal, D >= 0 only; a negative delay is ignored there) a ring of the last
+// `delay_capacity` samples (allocated at construction) interpolates x and the provided acceleration
+// linearly (the cubic would need a sample that has not come yet when D is below two samples); a
+// delay longer than the ring holds the oldest sample.  The two differ by about w (1 - w) Ts^2 a / 2
+// in x (w the fraction of the interval).
 #pragma once
 
 #include <algorithm>
@@ -639,29 +640,95 @@ T interpolate_displacement(std::span<const double> time, std::span<const T> x, s
          x[j + 2] * (d0 * d1 * d2 / ((t3 - t0) * (t3 - t1) * (t3 - t2)));
 }
 
+/// The quadratic through the edge sample of a record (`front` or back) whose slope and curvature
+/// fit the `length` samples at that edge by least squares, in u = t - t_edge:
+/// x ~ x_edge + c[1] u + c[2] u^2.  Through the edge sample, so that the displacement stays
+/// continuous in D where the target crosses it (a jump there is a jump in a fit's cost).  Two
+/// samples: the line through them; one: the constant.
+struct EdgePolynomial {
+  double edge_time = 0;
+  double reach = 0;  ///< how far outside the record it is used [s]: its own length
+  std::array<double, 3> c{};
+  template <typename T>
+  T at(const T& t) const {
+    // Beyond its own length the quadratic would be a guess: held at its value there.
+    const double lo = edge_time - reach, hi = edge_time + reach;
+    const T u = (value_of(t) < lo ? T(lo) : value_of(t) > hi ? T(hi) : t) - edge_time;
+    return T(c[0]) + u * (T(c[1]) + u * T(c[2]));
+  }
+};
+
+template <typename T>
+EdgePolynomial edge_polynomial(std::span<const double> time, std::span<const T> x, bool front,
+                               std::size_t length) {
+  const std::size_t n = x.size();
+  length = std::min(std::max<std::size_t>(length, 1), n);
+  EdgePolynomial p;
+  const std::size_t e = front ? 0 : n - 1;
+  p.edge_time = time[e];
+  p.c[0] = value_of(x[e]);
+  if (length == 1) return p;
+  p.reach = std::abs(time[front ? length - 1 : n - length] - p.edge_time);
+  // Normal equations of (c1, c2) in u / reach (well scaled: |u| <= 1).
+  double a11 = 0, a12 = 0, a22 = 0, b1 = 0, b2 = 0;
+  for (std::size_t i = 1; i < length; ++i) {
+    const std::size_t k = front ? i : n - 1 - i;
+    const double u = (time[k] - p.edge_time) / p.reach, d = value_of(x[k]) - p.c[0];
+    a11 += u * u, a12 += u * u * u, a22 += u * u * u * u;
+    b1 += u * d, b2 += u * u * d;
+  }
+  double c1 = b1 / a11, c2 = 0;
+  if (length >= 3) {
+    const double det = a11 * a22 - a12 * a12;
+    c1 = (b1 * a22 - b2 * a12) / det;
+    c2 = (a11 * b2 - a12 * b1) / det;
+  }
+  p.c[1] = c1 / p.reach;
+  p.c[2] = c2 / (p.reach * p.reach);
+  return p;
+}
+
 /// The displacement at t_k - D, interpolated by the cubic through the four samples around it
-/// (linearly in the first and last interval) and held at the first / last sample outside the
-/// record (header: Delay); x itself when D = 0.  Why cubic: linear interpolation at the fraction w
-/// of an interval is short of x by about w (1 - w) Ts^2 a / 2, a force error proportional to the
-/// acceleration that a fitted model paid for with a spurious mass beside a delay (0.047 kg beside
-/// a 1.7 ms delay on a test record, named as an inertia); the cubic's error is of order Ts^4.
+/// (linearly in the first and last interval), and outside the record extrapolated by the quadratic
+/// through the edge sample fitted to the `edge_length` samples there (header: Delay); x itself
+/// when D = 0.  Why
+/// cubic: linear interpolation at the fraction w of an interval is short of x by about
+/// w (1 - w) Ts^2 a / 2, a force error proportional to the acceleration that a fitted model paid
+/// for with a spurious mass beside a delay (0.047 kg beside a 1.7 ms delay on a test record, named
+/// as an inertia); the cubic's error is of order Ts^4.  Why extrapolated: the first D / Ts forces
+/// of a record were made by motion before it; held at the first sample, the model's force there
+/// stood still while the recorded one moved, and the fit shortened D to shrink those residuals
+/// (z = -2 to -6 against the truth on the discovery study's delay records, noise-free ones too).
+/// `edge_length`: the record's velocity window (2m + 1 samples, sample_derivatives.hpp), the
+/// estimator whose polynomial at the edge this continues; 0 holds the edge sample.
 template <typename T>
 void delayed_displacement_into(std::span<const double> time, std::span<const T> x, const T& delay,
-                               std::vector<T>& xs) {
+                               std::vector<T>& xs, std::size_t edge_length = 0) {
   const std::size_t n = x.size();
   xs.assign(x.begin(), x.end());
   // A delay of exactly 0 that carries derivatives still needs them (d x(t - D) / dD = -v): a fit
   // started at D = 0 saw a zero gradient and never left it (36 times the floor on a record with
   // D = 0.3 samples).
   if (value_of(delay) == 0.0 && !has_derivative(delay)) return;
+  std::optional<EdgePolynomial> first, last;
   std::size_t j = 0;  // time[j] <= target < time[j + 1]; targets increase with k
   for (std::size_t k = 0; k < n; ++k) {
     const T target = T(time[k]) - delay;
     const double tv = value_of(target);
     if (tv <= time.front()) {
-      xs[k] = x.front();
+      if (edge_length == 0) {
+        xs[k] = x.front();
+        continue;
+      }
+      if (!first) first = edge_polynomial(time, x, true, edge_length);
+      xs[k] = first->at(target);
     } else if (tv >= time.back()) {
-      xs[k] = x.back();
+      if (edge_length == 0) {
+        xs[k] = x.back();
+        continue;
+      }
+      if (!last) last = edge_polynomial(time, x, false, edge_length);
+      xs[k] = last->at(target);
     } else {
       while (j + 1 < n && time[j + 1] <= tv) ++j;
       xs[k] = interpolate_displacement(time, x, j, target);
@@ -671,9 +738,9 @@ void delayed_displacement_into(std::span<const double> time, std::span<const T> 
 
 template <typename T>
 std::vector<T> delayed_displacement(std::span<const double> time, std::span<const T> x,
-                                    const T& delay) {
+                                    const T& delay, std::size_t edge_length = 0) {
   std::vector<T> xs;
-  delayed_displacement_into(time, x, delay, xs);
+  delayed_displacement_into(time, x, delay, xs, edge_length);
   return xs;
 }
 
@@ -686,6 +753,11 @@ inline DerivativeWindows record_derivative_windows(std::span<const double> time,
   DerivativeWindows w;
   if (x.size() >= 2) w.sampling_period = (time.back() - time.front()) / double(x.size() - 1);
   return w;
+}
+
+/// The samples a delay's extrapolation fits at a record's edge: the velocity window, 2m + 1.
+inline std::size_t delay_edge_length(const DerivativeWindows& w) {
+  return 2 * w.velocity_half_width + 1;
 }
 
 /// Steps an extended model over a record, calling visit(k, context, force) after every sample
@@ -708,7 +780,6 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
   // and three fresh vectors of Jets per run (4 MB at 10k samples) cost a sixth of a diagnosis in
   // page faults.  The visitors never step another model on the same thread.
   thread_local std::vector<T> xs, v, a;
-  delayed_displacement_into(time, x, p.delay ? p.delay->delay : T(0), xs);
   // The pieces' velocity and acceleration at the sample instants (header: Differentiators), with
   // the record's windows; the base's interval velocity dx/dt.
   DerivativeWindows own;
@@ -718,6 +789,8 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
     own = record_derivative_windows(time, xd);
     windows = &own;
   }
+  delayed_displacement_into(time, x, p.delay ? p.delay->delay : T(0), xs,
+                            delay_edge_length(*windows));
   v.assign(n, T(0));
   a.assign(n, T(0));
   // A displacement without derivative parts (every fit but a delay's) is filtered as doubles:
