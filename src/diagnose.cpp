@@ -1,11 +1,13 @@
 // diagnose(): the stages of src/diagnose_stages.hpp in order (see diagnose.hpp for the method).
 #include "friction/diagnose.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <utility>
 
 #include "diagnose_stages.hpp"
 #include "friction/metrics.hpp"
+#include "position_origin.hpp"
 
 namespace friction {
 
@@ -39,12 +41,30 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
 
 }  // namespace
 
-Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& o) {
+Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
+                   const DiagnoseOptions& o) {
   using namespace diagnose_detail;
   const auto started = std::chrono::steady_clock::now();
-  FRICTION_CHECK(est.has_force() && val.has_force(), "diagnose: both records need a force");
+  FRICTION_CHECK(est_as_recorded.has_force() && val_as_recorded.has_force(),
+                 "diagnose: both records need a force");
   FRICTION_CHECK(o.baseline == "maxwell-slip" || o.baseline == "lugre",
                  "diagnose: baseline must be maxwell-slip or lugre, not ", o.baseline);
+  // A position-dependence candidate is fitted about the estimation record's first position, as
+  // every candidate sees it: both records shifted by it, the phase carried back to the origin at
+  // the end (position_origin.hpp).
+  const std::vector<Effect> candidates = applicable(o, est_as_recorded);
+  const double x_ref = std::find(candidates.begin(), candidates.end(),
+                                 Effect::position_dependence) != candidates.end() &&
+                               !est_as_recorded.displacement.empty()
+                           ? est_as_recorded.displacement.front()
+                           : 0.0;
+  Record est_shifted, val_shifted;
+  if (x_ref != 0.0) {
+    est_shifted = detail::shifted_record(est_as_recorded, x_ref);
+    val_shifted = detail::shifted_record(val_as_recorded, x_ref);
+  }
+  const Record& est = x_ref != 0.0 ? est_shifted : est_as_recorded;
+  const Record& val = x_ref != 0.0 ? val_shifted : val_as_recorded;
   Diagnosis dx;
   const std::size_t n = est.size();
   const double sigma = estimate_white_noise_sigma(est.force);
@@ -70,7 +90,8 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
           run_extended_slip(b.state.base, b.state.ext,
                             deflections_from_relative(b.state.base, b.state.rho, b.state.ext), est),
           b.state.ext.reference_force),
-      noise_floor_rss_sss_percent(val.force, estimate_white_noise_sigma(val.force))};
+      noise_floor_rss_sss_percent(val.force, estimate_white_noise_sigma(val.force)),
+      x_ref};
 
   if (o.baseline == "lugre") {
     std::optional<Finding> nonlocal = fit_lugre_baseline(c, b, dx);
@@ -91,12 +112,13 @@ Diagnosis diagnose(const Record& est, const Record& val, const DiagnoseOptions& 
     dx.baseline_evidence = gather_evidence(b.state.base, b.state.ext, val, rho_v);
   }
 
-  Chain chain = forward_pass(c, b.state, applicable(o, est), dx.first_round);
+  Chain chain = forward_pass(c, b.state, candidates, dx.first_round);
   warn_if_short_of_operators(dx);
   chain = backward_pass(c, std::move(chain));
   polish_final(c, chain);
   dx.warnings.insert(dx.warnings.end(), chain.warnings.begin(), chain.warnings.end());
   report(c, chain, dx);
+  for (CandidateFit& cand : dx.first_round) detail::phase_to_origin(cand.extensions, x_ref);
   dx.seconds = seconds_since(started);
   return dx;
 }

@@ -10,6 +10,7 @@
 #include "friction/extension_identification.hpp"
 #include "friction/identification.hpp"
 #include "number_format.hpp"
+#include "position_origin.hpp"
 #include "sample_statistics.hpp"
 
 namespace friction {
@@ -96,6 +97,20 @@ void judge_ambiguity(const Context& c, const std::vector<Tried>* round, const St
     f.ambiguous_with.push_back({std::nullopt});
 }
 
+// The standard errors of a state's joint fit, its phase carried to the position origin of the
+// records as given (position_origin.hpp).
+ExtendedSlipReport report_at_origin(const Context& c, const State& s) {
+  ExtendedSlipReport rep = report_extended_slip(c.est, fit_of(s));
+  if (c.position_origin == 0.0 || !s.ext.position_dependence) return rep;
+  ExtensionParameters<double> ext = s.ext;
+  detail::phase_to_origin(ext, c.position_origin);
+  std::vector<double> base_se;
+  for (const auto& p : rep.base) base_se.push_back(p.standard_error);
+  detail::phase_estimate_to_origin(rep.pieces, base_se, rep.correlation, c.position_origin,
+                                   ext.position_dependence->phase);
+  return rep;
+}
+
 // The finding of step i of the chain (states[i - 1] -> states[i]).
 Finding make_finding(const Context& c, const Chain& chain, std::size_t i, double speed_span) {
   const State& before = chain.states[i - 1];
@@ -104,7 +119,7 @@ Finding make_finding(const Context& c, const Chain& chain, std::size_t i, double
   Finding f;
   f.effect = e;
   // Its parameters with standard errors from the joint fit of this step (section 6).
-  const ExtendedSlipReport rep = report_extended_slip(c.est, fit_of(after));
+  const ExtendedSlipReport rep = report_at_origin(c, after);
   const auto with = effect_info(e).reported_with;
   for (const auto& est : rep.pieces)
     if (est.effect == e) f.parameters.push_back(est);
@@ -175,11 +190,13 @@ void report(const Context& c, const Chain& chain, Diagnosis& dx) {
     dx.findings.push_back(make_finding(c, chain, i, speed_span));
   const State& last = chain.states.back();
   warn_of_strong_rejected(c, last, dx);
-  dx.final_model = AnyModel(Extended<MaxwellSlip<double>>(
-      MaxwellSlip<double>(last.base), to_own_reference(last.ext, last.base.sliding_force())));
+  ExtensionParameters<double> final_ext = to_own_reference(last.ext, last.base.sliding_force());
+  detail::phase_to_origin(final_ext, c.position_origin);
+  dx.final_model =
+      AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(last.base), final_ext));
   dx.final_validation_percent = last.validation;
   dx.final_estimation_percent = statistics::rss_sss_percent(c.est.force, last.rss);
-  if (!last.ext.empty()) dx.final_pieces = report_extended_slip(c.est, fit_of(last)).pieces;
+  if (!last.ext.empty()) dx.final_pieces = report_at_origin(c, last).pieces;
 }
 
 }  // namespace diagnose_detail

@@ -59,6 +59,8 @@ struct Context {
   DerivativeWindows windows;   ///< the estimation record's (sample_derivatives.hpp)
   ProfileScales scales;        ///< the estimation record's, for the profiled starts
   double validation_floor_percent = 0;  ///< the validation record's noise floor, RSS/SSS %
+  /// The position subtracted from both records (position_origin.hpp): 0 when not shifted.
+  double position_origin = 0;
 };
 
 // ---- baseline -----------------------------------------------------------------------------

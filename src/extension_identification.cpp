@@ -14,6 +14,7 @@
 #include "friction/initial_state.hpp"
 #include "friction/lg.hpp"
 #include "number_format.hpp"
+#include "position_origin.hpp"
 
 namespace friction {
 
@@ -185,57 +186,15 @@ void check_extension_request(const std::string& type, const std::vector<Effect>&
 
 namespace {
 
-// The fitted phase phi_0 (about x_ref) carried to the origin: phi = phi_0 - 2 pi x_ref / lambda,
-// in [0, 2 pi); its standard error and correlations through d phi = d phi_0 + a d lambda,
-// a = 2 pi x_ref / lambda^2.
+// The fitted pieces' phase carried to the origin (position_origin.hpp), with its estimate.
 void phase_to_origin(ExtensionIdentification& res, double x_ref) {
   ExtensionParameters<double> ext = res.model.extensions();
-  auto& pd = *ext.position_dependence;
-  const double a = 2.0 * M_PI * x_ref / (pd.wavelength * pd.wavelength);
-  pd.phase -= 2.0 * M_PI * x_ref / pd.wavelength;
-  pd.phase -= 2.0 * M_PI * std::floor(pd.phase / (2.0 * M_PI));
+  detail::phase_to_origin(ext, x_ref);
   res.model = res.model.with_extensions(ext);
-  const std::size_t nb = res.base_parameters.size();
-  std::ptrdiff_t ip = -1, iw = -1;
-  for (std::size_t i = 0; i < res.estimates.size(); ++i)
-    if (res.estimates[i].effect == Effect::position_dependence) {
-      if (res.estimates[i].name == "phase") ip = static_cast<std::ptrdiff_t>(i);
-      if (res.estimates[i].name == "wavelength") iw = static_cast<std::ptrdiff_t>(i);
-    }
-  if (ip < 0) return;
-  ExtensionEstimate& ph = res.estimates[static_cast<std::size_t>(ip)];
-  const double shift = pd.phase - ph.value;
-  ph.value = pd.phase;
-  if (!ph.available || iw < 0 || !res.estimates[static_cast<std::size_t>(iw)].available) {
-    ph.lower95 += shift, ph.upper95 += shift;
-    return;
-  }
-  Eigen::MatrixXd& r = res.correlation_matrix;
-  const Eigen::Index n = r.rows(), p = static_cast<Eigen::Index>(nb) + ip,
-                     w = static_cast<Eigen::Index>(nb) + iw;
-  if (p >= n || w >= n) {
-    ph.available = false, ph.standard_error = 0, ph.lower95 = ph.upper95 = ph.value;
-    return;
-  }
-  // Standard errors of every parameter of the matrix (0 where unknown).
-  Eigen::VectorXd se = Eigen::VectorXd::Zero(n);
-  for (std::size_t i = 0; i < nb && static_cast<Eigen::Index>(i) < n; ++i)
-    se(static_cast<Eigen::Index>(i)) = res.base_parameters[i].standard_error;
-  for (std::size_t i = 0; i < res.estimates.size() && static_cast<Eigen::Index>(nb + i) < n; ++i)
-    se(static_cast<Eigen::Index>(nb + i)) =
-        res.estimates[i].available ? res.estimates[i].standard_error : 0.0;
-  const Eigen::MatrixXd cov = se.asDiagonal() * r * se.asDiagonal();
-  Eigen::VectorXd row = cov.row(p).transpose() + a * cov.row(w).transpose();
-  const double var = cov(p, p) + 2.0 * a * cov(p, w) + a * a * cov(w, w);
-  row(p) = var;
-  const double sp = std::sqrt(std::max(var, 0.0));
-  ph.standard_error = sp;
-  ph.lower95 = ph.value - 1.96 * sp;
-  ph.upper95 = ph.value + 1.96 * sp;
-  for (Eigen::Index j = 0; j < n; ++j) {
-    const double c = j == p ? 1.0 : (sp > 0 && se(j) > 0 ? row(j) / (sp * se(j)) : 0.0);
-    r(p, j) = r(j, p) = c;
-  }
+  std::vector<double> base_se;
+  for (const auto& p : res.base_parameters) base_se.push_back(p.standard_error);
+  detail::phase_estimate_to_origin(res.estimates, base_se, res.correlation_matrix, x_ref,
+                                   ext.position_dependence->phase);
 }
 
 }  // namespace
@@ -253,22 +212,13 @@ ExtensionIdentification identify_extensions(const AnyModel& base, const Record& 
   check_extension_request(base.type(), effects, r);
   ExtensionIdentification res{base};
   res.base_estimation_percent = 100.0 * rss_of(r, base_simulated) / sum_sq(r.force);
-  // Position dependence is the only piece that sees the absolute position, through
-  // sin(2 pi x / lambda + phi).  On a record far from the position origin (a study record: x near
-  // -0.078 m, travel 1e-5 m, lambda 4e-6 m, so 2 pi x / lambda ~ -1e5 rad) the phase at the
-  // origin moves by radians for a relative change of lambda of 1e-5: the two are correlated to 1 -
-  // 1e-10, Levenberg-Marquardt could not move lambda (it stopped 3 % off, validating at 4x the
-  // floor), and the phase's standard error was 846 rad.  So the pieces are fitted on the record
-  // shifted to start at x = 0, and the phase is carried back to the origin afterwards (its
-  // standard error and correlations by the linear map phi = phi_0 - 2 pi x_ref / lambda).
+  // Position dependence sees the absolute position: fitted about the record's first position
+  // (position_origin.hpp).
   const bool position =
       std::find(effects.begin(), effects.end(), Effect::position_dependence) != effects.end();
   const double x_ref = position ? r.displacement.front() : 0.0;
   Record shifted;
-  if (x_ref != 0.0) {
-    shifted = r;
-    for (double& v : shifted.displacement) v -= x_ref;
-  }
+  if (x_ref != 0.0) shifted = detail::shifted_record(r, x_ref);
   const Record& fitted_on = x_ref != 0.0 ? shifted : r;
   if (effects.empty()) {
     res.model = base;
