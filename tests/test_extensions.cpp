@@ -322,7 +322,7 @@ TEST(Extensions, DelayShiftsTheForceInTime) {
 // The motion before (and, for a negative delay, after) the record is the quadratic its edge
 // samples fit: exact on a quadratic motion, for either sign of D, within the fit's own length;
 // beyond it the value there is held.  Held at the edge sample, the first D / Ts forces of a record
-// stood still where the recorded ones moved, and a fitted delay came out short by z = 2-6.
+// stood still where the recorded ones moved.
 TEST(Extensions, ADelayExtrapolatesTheMotionBeyondTheRecord) {
   const double ts = 1e-3;
   auto motion = [](double t) { return 1e-5 + 2e-4 * t - 3e-2 * t * t; };

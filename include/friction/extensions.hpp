@@ -691,16 +691,15 @@ EdgePolynomial edge_polynomial(std::span<const double> time, std::span<const T> 
 /// The displacement at t_k - D, interpolated by the cubic through the four samples around it
 /// (linearly in the first and last interval), and outside the record extrapolated by the quadratic
 /// through the edge sample fitted to the `edge_length` samples there (header: Delay); x itself
-/// when D = 0.  Why
-/// cubic: linear interpolation at the fraction w of an interval is short of x by about
-/// w (1 - w) Ts^2 a / 2, a force error proportional to the acceleration that a fitted model paid
-/// for with a spurious mass beside a delay (0.047 kg beside a 1.7 ms delay on a test record, named
-/// as an inertia); the cubic's error is of order Ts^4.  Why extrapolated: the first D / Ts forces
-/// of a record were made by motion before it; held at the first sample, the model's force there
-/// stood still while the recorded one moved, and the fit shortened D to shrink those residuals
-/// (z = -2 to -6 against the truth on the discovery study's delay records, noise-free ones too).
-/// `edge_length`: the record's velocity window (2m + 1 samples, sample_derivatives.hpp), the
-/// estimator whose polynomial at the edge this continues; 0 holds the edge sample.
+/// when D = 0.  Why cubic: linear interpolation at the fraction w of an interval is short of x by
+/// about w (1 - w) Ts^2 a / 2, a force error proportional to the acceleration that a fitted model
+/// paid for with a spurious mass beside a delay (0.047 kg beside a 1.7 ms delay on a test record,
+/// named as an inertia); the cubic's error is of order Ts^4.  Why extrapolated: the first D / Ts
+/// forces of a record were made by motion before it; held at the first sample, the model's force
+/// there stood still while the recorded one moved (validation RSS/SSS 0.0187 % against 0.0005 %
+/// now on a noise-free record of the study's simulator with D = 3 samples).  `edge_length`: the
+/// record's velocity window (2m + 1 samples, sample_derivatives.hpp), the estimator whose
+/// polynomial at the edge this continues; 0 holds the edge sample.
 template <typename T>
 void delayed_displacement_into(std::span<const double> time, std::span<const T> x, const T& delay,
                                std::vector<T>& xs, std::size_t edge_length = 0) {
