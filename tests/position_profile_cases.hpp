@@ -87,6 +87,25 @@ inline std::pair<std::uint64_t, double> case_seed(std::uint64_t k) {
   return {k * 104729u, 9.5 + k};
 }
 
+/// The case's record moved to start at x = 0 (`near`) and the same record moved 10^4 travels from
+/// the origin (`far`, by `x0`): only the absolute position differs, as a fit about the origin sees
+/// it.
+struct NearAndFar {
+  Record near, far;
+  double x0 = 0;
+};
+inline NearAndFar near_and_far(const Case& c) {
+  NearAndFar r;
+  r.near = testing::record_of(c.trace);
+  const double start = r.near.displacement.front();
+  for (double& v : r.near.displacement) v -= start;
+  const auto [lo, hi] = std::minmax_element(r.near.displacement.begin(), r.near.displacement.end());
+  r.x0 = 1e4 * (*hi - *lo);
+  r.far = r.near;
+  for (double& v : r.far.displacement) v += r.x0;
+  return r;
+}
+
 /// Fits case k and checks its wavelength.
 inline void expect_right_basin(std::uint64_t k) {
   const auto [seed, periods] = case_seed(k);

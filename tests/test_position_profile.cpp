@@ -22,13 +22,7 @@ TEST(PositionProfile, ManyPeriodsOverTheTravelStartInTheRightBasin) {
 TEST(PositionProfile, AFarPositionOriginChangesOnlyThePhase) {
   const auto [seed, periods] = position_profile_cases::case_seed(2);
   const position_profile_cases::Case c = position_profile_cases::make_case(seed, periods);
-  Record near = testing::record_of(c.trace);
-  const double start = near.displacement.front();
-  for (double& v : near.displacement) v -= start;
-  const auto [lo, hi] = std::minmax_element(near.displacement.begin(), near.displacement.end());
-  const double x0 = 1e4 * (*hi - *lo);
-  Record far = near;
-  for (double& v : far.displacement) v += x0;
+  const auto [near, far, x0] = position_profile_cases::near_and_far(c);
   MethodOptions o;
   o.extensions = {Effect::position_dependence};
   const auto fit = [&](const Record& r) {

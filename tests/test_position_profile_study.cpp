@@ -27,13 +27,7 @@ TEST(PositionProfileStudy, ManyPeriodsOverTheTravelStartInTheRightBasin) {
 TEST(PositionProfileStudy, DiagnoseFitsAFarRecordAsANearOne) {
   const position_profile_cases::Case c =
       position_profile_cases::make_case(position_profile_cases::case_seed(3).first, 3.5);
-  Record near = testing::record_of(c.trace);
-  const double start = near.displacement.front();
-  for (double& v : near.displacement) v -= start;
-  const auto [lo, hi] = std::minmax_element(near.displacement.begin(), near.displacement.end());
-  const double x0 = 1e4 * (*hi - *lo);
-  Record far = near;
-  for (double& v : far.displacement) v += x0;
+  const auto [near, far, x0] = position_profile_cases::near_and_far(c);
   const Diagnosis a = diagnose(near, near), b = diagnose(far, far);
   const auto names = [](const Diagnosis& d) {
     std::set<std::string> s;
