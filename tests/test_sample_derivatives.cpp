@@ -130,6 +130,59 @@ TEST(SampleDerivatives, RememberedWindowsBelongToTheirRecord) {
   EXPECT_NE(choose_derivative_windows(t2, slow).sampling_period, a.sampling_period);
 }
 
+// A local polynomial of degree p reproduces any polynomial of degree <= p exactly, on any time
+// grid: so a quartic's derivatives come out exact from degree-4 windows, and a wrong weight (a
+// window taken as uniformly spaced when it is not, or the reverse) shows as an error.  The grid is
+// regular with, in turn, a missing sample, a stretch of jitter within the tolerance of 1e-6 Ts
+// that counts as regular, jitter of 1e-3 Ts that does not, and a slow drift of the clock.
+TEST(SampleDerivatives, PolynomialsAreExactOnIrregularTimeGrids) {
+  const double ts = 1e-3;
+  const std::size_t n = 600;
+  std::vector<double> t(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    double jitter = 0;
+    if (k >= 300 && k < 350) jitter = (k % 2 ? 4e-7 : -4e-7) * ts;  // regular within 1e-6 Ts
+    if (k >= 400 && k < 420) jitter = (k % 3 == 0 ? 1e-3 : -5e-4) * ts;
+    t[k] = static_cast<double>(k) * ts + (k >= 150 ? ts : 0.0) + jitter +
+           (k >= 500 ? 2e-5 * ts * static_cast<double>(k - 500) : 0.0);
+  }
+  // Centred on the record, so that the powers stay of order one.
+  const double c = t[n / 2];
+  auto x = [&](double s) {
+    const double u = s - c;
+    return 0.3 + 2.0 * u - 40.0 * u * u + 900.0 * u * u * u - 5e3 * u * u * u * u;
+  };
+  auto v = [&](double s) {
+    const double u = s - c;
+    return 2.0 - 80.0 * u + 2700.0 * u * u - 2e4 * u * u * u;
+  };
+  auto a = [&](double s) {
+    const double u = s - c;
+    return -80.0 + 5400.0 * u - 6e4 * u * u;
+  };
+  std::vector<double> xs(n), velocity(n), acceleration(n);
+  for (std::size_t k = 0; k < n; ++k) xs[k] = x(t[k]);
+  for (std::size_t m : {2u, 7u, 30u}) {
+    DerivativeWindows w;
+    w.velocity_half_width = m;
+    w.acceleration_half_width = m + 3;
+    w.velocity_degree = w.acceleration_degree = 4;
+    local_polynomial_derivatives(t, xs, w, velocity, acceleration);
+    double worst_v = 0, worst_a = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      worst_v = std::max(worst_v, std::abs(velocity[k] - v(t[k])));
+      worst_a = std::max(worst_a, std::abs(acceleration[k] - a(t[k])));
+    }
+    // Velocities of order 2 m/s, accelerations of order 100 m/s^2.  What is left is the jitter
+    // within 1e-6 Ts that counts as regular: a velocity error of about v * 4e-7 (6.6e-7 m/s
+    // measured at half width 2), an acceleration error of 1.5e-4 m/s^2 (half width 5).  A window
+    // of 1e-3 Ts jitter taken as regular is off by some 1e-3 of the velocity, one across the
+    // missing sample by far more.
+    EXPECT_LT(worst_v, 5e-6) << "half width " << m;
+    EXPECT_LT(worst_a, 2e-3) << "half width " << m + 3;
+  }
+}
+
 }  // namespace
 }  // namespace test_sample_derivatives
 }  // namespace friction::testing

@@ -80,6 +80,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <deque>
 #include <span>
 #include <vector>
 
@@ -179,12 +180,27 @@ void apply_local_derivatives(std::span<const double> time, std::span<const T> x,
       }
     };
     const std::size_t half = width / 2;
+    // A window is uniform when every r_i = t_i - t_0 - i Ts in it lies within 1e-6 Ts of its
+    // centre's: the window's largest and smallest r, kept over the sliding window by two
+    // monotone queues, so that the test costs O(1) per sample and not a pass over the window
+    // (which cost as much as the filter itself).
+    std::vector<double> r(n);
+    for (std::size_t i = 0; i < n; ++i) r[i] = time[i] - time[0] - static_cast<double>(i) * ts;
+    std::deque<std::size_t> largest, smallest;  // indices into the current window, r monotone
+    std::size_t next = 0;                       // the first index not yet in the queues
     for (std::size_t k = 0; k < n; ++k) {
       std::size_t lo = k >= m ? k - m : 0;
       if (lo + width > n) lo = n - width;
-      bool uniform = lo + half == k;
-      for (std::size_t i = lo; uniform && i < lo + width; ++i)
-        uniform = std::abs(time[i] - time[k] - (double(i) - double(k)) * ts) <= 1e-6 * ts;
+      for (; next < lo + width; ++next) {
+        while (!largest.empty() && r[largest.back()] <= r[next]) largest.pop_back();
+        while (!smallest.empty() && r[smallest.back()] >= r[next]) smallest.pop_back();
+        largest.push_back(next);
+        smallest.push_back(next);
+      }
+      while (largest.front() < lo) largest.pop_front();
+      while (smallest.front() < lo) smallest.pop_front();
+      const bool uniform = lo + half == k && r[largest.front()] - r[k] <= 1e-6 * ts &&
+                           r[k] - r[smallest.front()] <= 1e-6 * ts;
       const std::vector<double>* wk = &weights;
       if (uniform) {
         if (centred.empty()) {
