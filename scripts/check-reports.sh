@@ -37,13 +37,38 @@ per_record() { # ROLE PREFIX...: the figures of one model on one record
   done
 }
 
+# Independent commands run side by side (a check is mostly one Python process waiting for
+# Chromium, and the two cores were half idle one check at a time); each one's output goes to a
+# log, shown when it fails.
+PIDS=()
+NAMES=()
+start() { # start NAME COMMAND...: in the background, output in $OUT/NAME.log
+  NAMES+=("$1")
+  "${@:2}" >"$OUT/$1.log" 2>&1 &
+  PIDS+=($!)
+}
+finish() { # waits for everything start()ed; fails if any failed, after showing its log
+  local i status=0
+  for i in "${!PIDS[@]}"; do
+    if ! wait "${PIDS[$i]}"; then
+      cat "$OUT/${NAMES[$i]}.log"
+      echo "error: ${NAMES[$i]} failed (log: $OUT/${NAMES[$i]}.log)" >&2
+      status=1
+    fi
+  done
+  PIDS=()
+  NAMES=()
+  return "$status"
+}
+
 say "Writing the reports on data/"
-"$CLI" compare --data data/estimation.csv --validate data/validation.csv \
-  --out "$OUT/compare.json" --report "$OUT/compare.html" >/dev/null 2>"$OUT/compare.err"
-"$CLI" diagnose --data data/estimation.csv --validate data/validation.csv --format json \
-  --out "$OUT/diagnose.json" --report "$OUT/diagnose.html" 2>"$OUT/diagnose.err"
-"$CLI" validate --model-file data/true-model.json --data data/validation.csv \
-  --out "$OUT/validate.txt" --report "$OUT/validate.html" 2>"$OUT/validate.err"
+start write-compare "$CLI" compare --data data/estimation.csv --validate data/validation.csv \
+  --out "$OUT/compare.json" --report "$OUT/compare.html"
+start write-diagnose "$CLI" diagnose --data data/estimation.csv --validate data/validation.csv \
+  --format json --out "$OUT/diagnose.json" --report "$OUT/diagnose.html"
+start write-validate "$CLI" validate --model-file data/true-model.json \
+  --data data/validation.csv --out "$OUT/validate.txt" --report "$OUT/validate.html"
+finish
 findings=$(python3 -c 'import json,sys; print(len(json.load(open(sys.argv[1]))["findings"]))' \
   "$OUT/diagnose.json")
 ((findings >= 1)) || die "diagnose named no effect on data/ (it should: Stribeck, lag, viscous)"
@@ -51,15 +76,16 @@ ls -l "$OUT"/*.html
 
 say "Checking the reports in headless Chromium"
 # shellcheck disable=SC2046
-"${CHECK[@]}" "$OUT/compare.html" --expect compare-errors \
+start check-compare "${CHECK[@]}" "$OUT/compare.html" --expect compare-errors \
   $(per_record validation- LG NLR DNLRX) $(per_record estimation- LG NLR DNLRX) \
   --expect-kind loops-zoom=6 --screenshot "$OUT/compare.png"
 # shellcheck disable=SC2046
-"${CHECK[@]}" "$OUT/diagnose.html" $(LOOP_SUFFIX=-1 per_record validation '') \
+start check-diagnose "${CHECK[@]}" "$OUT/diagnose.html" $(LOOP_SUFFIX=-1 per_record validation '') \
   $(LOOP_SUFFIX=-2 per_record estimation '') --expect validation-loops-2 \
   --expect estimation-loops-1 --expect-kind "signature=$findings" --screenshot "$OUT/diagnose.png"
-"${CHECK[@]}" "$OUT/validate.html" --expect validation-time --expect validation-zoom \
-  --expect validation-loops --expect validation-loops-zoom --expect validation-sliding
+start check-validate "${CHECK[@]}" "$OUT/validate.html" --expect validation-time \
+  --expect validation-zoom --expect validation-loops --expect validation-loops-zoom \
+  --expect validation-sliding
 
 say "Checking the checker on broken reports"
 # break NAME PYTHON-EXPRESSION: writes $OUT/broken-NAME.html from the validate report, with the
@@ -88,23 +114,54 @@ break_report outside \
 break_report invisible \
   'plot(s, "validation-zoom", lambda p: re.sub(r"stroke=\"#[0-9A-Fa-f]{6}\" stroke-width", "stroke=\"#ffffff\" stroke-width", p))'
 
-expect_failure() { # NAME REASON: the check of broken-NAME must fail and name REASON
-  local name=$1 reason=$2 log="$OUT/broken-$1.log"
-  if "${CHECK[@]}" "$OUT/broken-$name.html" --expect validation-loops >"$log" 2>&1; then
+# The checks of the broken copies run beside the checks of the real reports above.
+expect_failure() { # NAME: the check of broken-NAME, in the background
+  start "broken-$1" "${CHECK[@]}" "$OUT/broken-$1.html" --expect validation-loops
+}
+expect_failure network
+expect_failure missing
+expect_failure empty
+expect_failure outside
+expect_failure invisible
+# Every check at once: the real reports' must pass, the broken copies' must fail for the reason
+# they were broken.
+BROKEN=()
+REAL_PIDS=()
+REAL_NAMES=()
+for i in "${!NAMES[@]}"; do
+  if [[ "${NAMES[$i]}" == broken-* ]]; then
+    BROKEN+=("${NAMES[$i]}:${PIDS[$i]}")
+  else
+    REAL_NAMES+=("${NAMES[$i]}")
+    REAL_PIDS+=("${PIDS[$i]}")
+  fi
+done
+judge_broken() { # NAME PID REASON
+  local name=$1 pid=$2 reason=$3 log="$OUT/$1.log"
+  if wait "$pid"; then
     cat "$log"
-    die "the checker passed the broken report broken-$name.html"
+    die "the checker passed the broken report $name.html"
   fi
   grep -q -- "$reason" "$log" || {
     cat "$log"
-    die "the checker failed broken-$name.html, but not for '$reason'"
+    die "the checker failed $name.html, but not for '$reason'"
   }
-  printf 'broken-%-10s fails as it should: %s\n' "$name" "$(grep -m1 -- "$reason" "$log")"
+  printf '%-17s fails as it should: %s\n' "$name" "$(grep -m1 -- "$reason" "$log")"
 }
-expect_failure network "console error"
-expect_failure missing "expected plot validation-loops is missing"
-expect_failure empty "validation-sliding, panel force: 0 marks"
-expect_failure outside "validation-time, panel force: 0 marks with finite coordinates inside"
-expect_failure invisible "validation-zoom, panel force: the screenshot of the plot area is only background"
+declare -A REASON=(
+  [broken-network]="console error"
+  [broken-missing]="expected plot validation-loops is missing"
+  [broken-empty]="validation-sliding, panel force: 0 marks"
+  [broken-outside]="validation-time, panel force: 0 marks with finite coordinates inside"
+  [broken-invisible]="validation-zoom, panel force: the screenshot of the plot area is only background"
+)
+PIDS=("${REAL_PIDS[@]}")
+NAMES=("${REAL_NAMES[@]}")
+finish
+for name in "${REAL_NAMES[@]}"; do cat "$OUT/$name.log"; done
+for b in "${BROKEN[@]}"; do
+  judge_broken "${b%%:*}" "${b##*:}" "${REASON[${b%%:*}]}"
+done
 # The invisible plot keeps its marks in the DOM: only the screenshot caught it.
 if grep -q "validation-zoom, panel force: [0-9]* marks" "$OUT/broken-invisible.log"; then
   die "broken-invisible.html: the DOM check should not have seen anything wrong"

@@ -65,7 +65,6 @@ check_warning_flags() {
 
 install_test() {
   INSTALL_TMP=$(mktemp -d "${TMPDIR:-/tmp}/friction-install-test.XXXXXX")
-  trap 'rm -rf "$INSTALL_TMP"' EXIT
   local tmp=$INSTALL_TMP
   say "Install test: cmake --install $FRICTION_BUILD_DIR --prefix $tmp/prefix"
   cmake --install "$FRICTION_BUILD_DIR" --prefix "$tmp/prefix" >"$tmp/install.log" ||
@@ -96,10 +95,6 @@ install_test() {
 }
 
 sanitizer_pass() {
-  if [[ "${FRICTION_SKIP_SANITIZERS:-0}" == 1 ]]; then
-    say "Skipping the ASan+UBSan pass (FRICTION_SKIP_SANITIZERS=1)"
-    return 0
-  fi
   configure_and_build "$ASAN_BUILD_DIR" -DFRICTION_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$SANITIZER_OPT_FLAGS" -DFRICTION_BUILD_BENCHMARKS=OFF \
     -DFRICTION_BUILD_LONG_TESTS=OFF
@@ -116,19 +111,21 @@ sanitizer_pass() {
     run_ctest "$ASAN_BUILD_DIR" --label-exclude long
 }
 
-thread_sanitizer_pass() {
-  if [[ "${FRICTION_SKIP_SANITIZERS:-0}" == 1 ]]; then
-    say "Skipping the ThreadSanitizer pass (FRICTION_SKIP_SANITIZERS=1)"
-    return 0
-  fi
+# The ThreadSanitizer build, meant to run in the background beside the ASan+UBSan build: the
+# library is one translation unit (CMakeLists.txt), which alone would leave one of two cores idle
+# for minutes; beside the ASan+UBSan build's batches it fills the gaps.  One job of its own
+# (--parallel 1): three compiles on two cores cost less than the two builds one after the other.
+thread_sanitizer_build() {
   if [[ ! -f "$TSAN_BUILD_DIR/CMakeCache.txt" ]]; then
     cmake -S "$FRICTION_ROOT" -B "$TSAN_BUILD_DIR" -G Ninja -DFRICTION_TSAN=ON -DFRICTION_COMBINED_TESTS=OFF \
       -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$SANITIZER_OPT_FLAGS" \
       -DFRICTION_BUILD_BENCHMARKS=OFF -DFRICTION_BUILD_LONG_TESTS=OFF
   fi
-  say "Building the concurrency tests in $TSAN_BUILD_DIR with $FRICTION_JOBS jobs"
-  cmake --build "$TSAN_BUILD_DIR" --parallel "$FRICTION_JOBS" \
+  cmake --build "$TSAN_BUILD_DIR" --parallel "${1:-$FRICTION_JOBS}" \
     --target test_diagnose test_lg test_concurrency
+}
+
+thread_sanitizer_tests() {
   export TSAN_OPTIONS="${TSAN_OPTIONS:-halt_on_error=1:second_deadlock_stack=1}"
   # The three programs at once (their threads leave the two cores half idle one at a time: 40 s in
   # sequence); each one's output is shown when it fails.
@@ -157,6 +154,47 @@ thread_sanitizer_pass() {
   return "$status"
 }
 
+# Both sanitizer passes.  The TSan build runs in the background while the ASan+UBSan build and
+# tests run; its output goes to a log, shown when it fails.
+sanitizer_passes() {
+  if [[ "${FRICTION_SKIP_SANITIZERS:-0}" == 1 ]]; then
+    say "Skipping the sanitizer passes (FRICTION_SKIP_SANITIZERS=1)"
+    return 0
+  fi
+  local tsan_log tsan_pid start=$SECONDS
+  mkdir -p "$TSAN_BUILD_DIR"
+  tsan_log="$TSAN_BUILD_DIR/build.log"
+  say "Building the ThreadSanitizer tests in $TSAN_BUILD_DIR in the background (log: $tsan_log)"
+  thread_sanitizer_build 1 >"$tsan_log" 2>&1 &
+  tsan_pid=$!
+  TSAN_BUILD_PID=$tsan_pid  # cleanup() stops it if the ASan+UBSan pass fails
+  timed "sanitizer pass ($ASAN_BUILD_DIR)" sanitizer_pass
+  say "Waiting for the ThreadSanitizer build"
+  TSAN_BUILD_PID=
+  if ! wait "$tsan_pid"; then
+    cat "$tsan_log"
+    die "the ThreadSanitizer build failed"
+  fi
+  printf -- '--- thread sanitizer build (%s, in the background): done %ds after the start\n' \
+    "$TSAN_BUILD_DIR" $((SECONDS - start))
+  timed "thread sanitizer tests ($TSAN_BUILD_DIR)" thread_sanitizer_tests
+}
+
+INSTALL_TMP=
+TSAN_BUILD_PID=
+kill_tree() { # PID and its descendants (the background build's cmake, ninja and compilers)
+  local child
+  if command -v pgrep >/dev/null 2>&1; then
+    for child in $(pgrep -P "$1" || true); do kill_tree "$child"; done
+  fi
+  kill "$1" 2>/dev/null || true
+}
+cleanup() {
+  [[ -z "$TSAN_BUILD_PID" ]] || kill_tree "$TSAN_BUILD_PID"
+  [[ -z "$INSTALL_TMP" ]] || rm -rf "$INSTALL_TMP"
+}
+trap cleanup EXIT
+
 total_start=$SECONDS
 if [[ -f "$FRICTION_BUILD_DIR/CMakeCache.txt" ]]; then
   timed "build ($FRICTION_BUILD_DIR)" configure_and_build "$FRICTION_BUILD_DIR"
@@ -168,6 +206,5 @@ timed "warning flags" check_warning_flags
 timed "ctest ($FRICTION_BUILD_DIR)" run_ctest "$FRICTION_BUILD_DIR"
 timed "browser check of the reports" bash scripts/check-reports.sh
 timed "install test" install_test
-timed "sanitizer pass ($ASAN_BUILD_DIR)" sanitizer_pass
-timed "thread sanitizer pass ($TSAN_BUILD_DIR)" thread_sanitizer_pass
+timed "sanitizer passes (ASan+UBSan, TSan)" sanitizer_passes
 say "All tests passed ($((SECONDS - total_start))s)"
