@@ -15,8 +15,9 @@
 #      are not built there (FRICTION_BUILD_LONG_TESTS=OFF).
 #      FRICTION_SKIP_SANITIZERS=1 skips this pass (CI always runs it).
 #   7. ThreadSanitizer on the concurrency tests (build-tsan/, only the three test programs that
-#      hold them): diagnose's candidates on four threads, LG's global stages on concurrent
-#      threads, compare's three methods on concurrent threads (test_concurrency).
+#      hold them, built in the background while step 6 runs): diagnose's candidates on four
+#      threads, LG's global stages on concurrent threads, compare's three methods on concurrent
+#      threads (test_concurrency).
 #      FRICTION_SKIP_SANITIZERS=1 skips it too.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
