@@ -139,6 +139,9 @@ void apply_local_derivatives(std::span<const double> time, std::span<const T> x,
                              std::span<T> acceleration) {
   const std::size_t n = x.size();
   const double ts = w.sampling_period > 0 ? w.sampling_period : 1.0;
+  // r_i = t_i - t_0 - i Ts: the departure of each time stamp from a regular grid.
+  std::vector<double> r(n);
+  for (std::size_t i = 0; i < n; ++i) r[i] = time[i] - time[0] - static_cast<double>(i) * ts;
   for (int order = 1; order <= 2; ++order) {
     const std::size_t m = order == 1 ? w.velocity_half_width : w.acceleration_half_width;
     const std::size_t degree = order == 1 ? w.velocity_degree : w.acceleration_degree;
@@ -180,12 +183,10 @@ void apply_local_derivatives(std::span<const double> time, std::span<const T> x,
       }
     };
     const std::size_t half = width / 2;
-    // A window is uniform when every r_i = t_i - t_0 - i Ts in it lies within 1e-6 Ts of its
-    // centre's: the window's largest and smallest r, kept over the sliding window by two
-    // monotone queues, so that the test costs O(1) per sample and not a pass over the window
-    // (which cost as much as the filter itself).
-    std::vector<double> r(n);
-    for (std::size_t i = 0; i < n; ++i) r[i] = time[i] - time[0] - static_cast<double>(i) * ts;
+    // A window is uniform when every r_i in it lies within 1e-6 Ts of its centre's (r above):
+    // the window's largest and smallest r, kept over the sliding window by two monotone queues,
+    // so that the test costs O(1) per sample and not a pass over the window (which cost as much
+    // as the filter itself).
     std::deque<std::size_t> largest, smallest;  // indices into the current window, r monotone
     std::size_t next = 0;                       // the first index not yet in the queues
     for (std::size_t k = 0; k < n; ++k) {
