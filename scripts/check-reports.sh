@@ -114,53 +114,36 @@ break_report outside \
 break_report invisible \
   'plot(s, "validation-zoom", lambda p: re.sub(r"stroke=\"#[0-9A-Fa-f]{6}\" stroke-width", "stroke=\"#ffffff\" stroke-width", p))'
 
-# The checks of the broken copies run beside the checks of the real reports above.
-expect_failure() { # NAME: the check of broken-NAME, in the background
-  start "broken-$1" "${CHECK[@]}" "$OUT/broken-$1.html" --expect validation-loops
+# The checks of the broken copies run beside the checks of the real reports above; each must
+# fail, for the reason it was broken.
+BROKEN=()  # NAME:PID of each, its reason in REASON[NAME]
+declare -A REASON=()
+expect_failure() { # NAME REASON: the check of broken-NAME, in the background
+  "${CHECK[@]}" "$OUT/broken-$1.html" --expect validation-loops >"$OUT/broken-$1.log" 2>&1 &
+  BROKEN+=("$1:$!")
+  REASON[$1]=$2
 }
-expect_failure network
-expect_failure missing
-expect_failure empty
-expect_failure outside
-expect_failure invisible
-# Every check at once: the real reports' must pass, the broken copies' must fail for the reason
-# they were broken.
-BROKEN=()
-REAL_PIDS=()
-REAL_NAMES=()
-for i in "${!NAMES[@]}"; do
-  if [[ "${NAMES[$i]}" == broken-* ]]; then
-    BROKEN+=("${NAMES[$i]}:${PIDS[$i]}")
-  else
-    REAL_NAMES+=("${NAMES[$i]}")
-    REAL_PIDS+=("${PIDS[$i]}")
-  fi
-done
-judge_broken() { # NAME PID REASON
-  local name=$1 pid=$2 reason=$3 log="$OUT/$1.log"
-  if wait "$pid"; then
+expect_failure network "console error"
+expect_failure missing "expected plot validation-loops is missing"
+expect_failure empty "validation-sliding, panel force: 0 marks"
+expect_failure outside "validation-time, panel force: 0 marks with finite coordinates inside"
+expect_failure invisible "validation-zoom, panel force: the screenshot of the plot area is only background"
+real=("${NAMES[@]}")
+finish
+for name in "${real[@]}"; do cat "$OUT/$name.log"; done
+for b in "${BROKEN[@]}"; do
+  name=${b%%:*}
+  log="$OUT/broken-$name.log"
+  reason=${REASON[$name]}
+  if wait "${b##*:}"; then
     cat "$log"
-    die "the checker passed the broken report $name.html"
+    die "the checker passed the broken report broken-$name.html"
   fi
   grep -q -- "$reason" "$log" || {
     cat "$log"
-    die "the checker failed $name.html, but not for '$reason'"
+    die "the checker failed broken-$name.html, but not for '$reason'"
   }
-  printf '%-17s fails as it should: %s\n' "$name" "$(grep -m1 -- "$reason" "$log")"
-}
-declare -A REASON=(
-  [broken-network]="console error"
-  [broken-missing]="expected plot validation-loops is missing"
-  [broken-empty]="validation-sliding, panel force: 0 marks"
-  [broken-outside]="validation-time, panel force: 0 marks with finite coordinates inside"
-  [broken-invisible]="validation-zoom, panel force: the screenshot of the plot area is only background"
-)
-PIDS=("${REAL_PIDS[@]}")
-NAMES=("${REAL_NAMES[@]}")
-finish
-for name in "${REAL_NAMES[@]}"; do cat "$OUT/$name.log"; done
-for b in "${BROKEN[@]}"; do
-  judge_broken "${b%%:*}" "${b##*:}" "${REASON[${b%%:*}]}"
+  printf 'broken-%-10s fails as it should: %s\n' "$name" "$(grep -m1 -- "$reason" "$log")"
 done
 # The invisible plot keeps its marks in the DOM: only the screenshot caught it.
 if grep -q "validation-zoom, panel force: [0-9]* marks" "$OUT/broken-invisible.log"; then
