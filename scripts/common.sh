@@ -11,7 +11,10 @@ FRICTION_JOBS="${FRICTION_JOBS:-$(nproc 2>/dev/null || echo 2)}"
 # The Debian packages the build needs (README and CI rely on this list); chromium and python3 for
 # the browser check of the HTML reports (scripts/check-reports.sh).
 FRICTION_PACKAGES=(cmake ninja-build g++ libeigen3-dev libceres-dev libnlopt-cxx-dev
-  libsundials-dev libgtest-dev libcli11-dev nlohmann-json3-dev libbenchmark-dev chromium python3)
+  libsundials-dev libgtest-dev libcli11-dev nlohmann-json3-dev libbenchmark-dev python3)
+# Needed by run-tests.sh only (the browser check of the reports); setup.sh installs them while
+# it builds.
+FRICTION_TEST_PACKAGES=(chromium)
 
 say() { printf '\n==> %s\n' "$*"; }
 die() {

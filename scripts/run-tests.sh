@@ -15,10 +15,11 @@
 #      are not built there (FRICTION_BUILD_LONG_TESTS=OFF).
 #      FRICTION_SKIP_SANITIZERS=1 skips this pass (CI always runs it).
 #   7. ThreadSanitizer on the concurrency tests (build-tsan/, only the three test programs that
-#      hold them, built in the background while step 6 runs): diagnose's candidates on four
-#      threads, LG's global stages on concurrent threads, compare's three methods on concurrent
-#      threads (test_concurrency).
+#      hold them): diagnose's candidates on four threads, LG's global stages on concurrent
+#      threads, compare's three methods on concurrent threads (test_concurrency).
 #      FRICTION_SKIP_SANITIZERS=1 skips it too.
+#   The builds of steps 6 and 7 start in the background, at a lower priority, when step 3 has
+#   passed, and so run beside steps 4 and 5.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 cd "$FRICTION_ROOT"
@@ -95,10 +96,14 @@ install_test() {
   grep -q '^saved-model check: OK$' <<<"$out" || die "the example did not check the saved model"
 }
 
-sanitizer_pass() {
+# The ASan+UBSan build: the library, the CLI and every test program except the studies.
+asan_build() {
   configure_and_build "$ASAN_BUILD_DIR" -DFRICTION_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$SANITIZER_OPT_FLAGS" -DFRICTION_BUILD_BENCHMARKS=OFF \
     -DFRICTION_BUILD_LONG_TESTS=OFF
+}
+
+asan_tests() {
   # ctest starts the longest tests first when it has timings of them; a fresh sanitizer build has
   # none, so it takes those the Release pass just measured for the same test names (the ASan+UBSan
   # tests on two cores: 85 s in ctest's own order, 74-75 s longest first).
@@ -112,10 +117,10 @@ sanitizer_pass() {
     run_ctest "$ASAN_BUILD_DIR" --label-exclude long
 }
 
-# The ThreadSanitizer build, meant to run in the background beside the ASan+UBSan build: the
-# library is one translation unit (CMakeLists.txt), which alone would leave one of two cores idle
-# for minutes; beside the ASan+UBSan build's batches it fills the gaps.  One job of its own
-# (--parallel 1): three compiles on two cores cost less than the two builds one after the other.
+# The ThreadSanitizer build: the library and the three test programs that hold the concurrency
+# tests.  One job of its own (--parallel 1): it runs beside the ASan+UBSan build, and three
+# compiles on two cores cost less than the two builds one after the other (the library is one
+# translation unit, which alone would leave a core idle for minutes).
 thread_sanitizer_build() {
   if [[ ! -f "$TSAN_BUILD_DIR/CMakeCache.txt" ]]; then
     cmake -S "$FRICTION_ROOT" -B "$TSAN_BUILD_DIR" -G Ninja -DFRICTION_TSAN=ON -DFRICTION_COMBINED_TESTS=OFF \
@@ -155,35 +160,58 @@ thread_sanitizer_tests() {
   return "$status"
 }
 
-# Both sanitizer passes.  The TSan build runs in the background while the ASan+UBSan build and
-# tests run; its output goes to a log, shown when it fails.
-sanitizer_passes() {
+# The sanitizer builds start in the background as soon as the Release tests have passed, at a
+# lower priority (nice 10), so that they take the core the browser check and the install test
+# leave idle (the browser check: 45 s on the clock for 42 CPU-s) without slowing them down.
+# Their output goes to logs, shown when a build fails.
+SANITIZER_BUILDS_START=
+start_sanitizer_builds() {
   if [[ "${FRICTION_SKIP_SANITIZERS:-0}" == 1 ]]; then
     say "Skipping the sanitizer passes (FRICTION_SKIP_SANITIZERS=1)"
     return 0
   fi
-  local tsan_log tsan_pid start=$SECONDS
-  mkdir -p "$TSAN_BUILD_DIR"
-  tsan_log="$TSAN_BUILD_DIR/build.log"
-  say "Building the ThreadSanitizer tests in $TSAN_BUILD_DIR in the background (log: $tsan_log)"
-  thread_sanitizer_build 1 >"$tsan_log" 2>&1 &
-  tsan_pid=$!
-  TSAN_BUILD_PID=$tsan_pid  # cleanup() stops it if the ASan+UBSan pass fails
-  timed "sanitizer pass ($ASAN_BUILD_DIR)" sanitizer_pass
-  say "Waiting for the ThreadSanitizer build"
-  TSAN_BUILD_PID=
-  if ! wait "$tsan_pid"; then
-    cat "$tsan_log"
-    die "the ThreadSanitizer build failed"
+  mkdir -p "$ASAN_BUILD_DIR" "$TSAN_BUILD_DIR"
+  say "Building the ASan+UBSan tests ($ASAN_BUILD_DIR/build.log) and the ThreadSanitizer tests" \
+    "($TSAN_BUILD_DIR/build.log) in the background"
+  SANITIZER_BUILDS_START=$SECONDS
+  (
+    renice -n 10 -p "$BASHPID" >/dev/null
+    asan_build
+  ) >"$ASAN_BUILD_DIR/build.log" 2>&1 &
+  ASAN_BUILD_PID=$!
+  (
+    renice -n 10 -p "$BASHPID" >/dev/null
+    thread_sanitizer_build 1
+  ) >"$TSAN_BUILD_DIR/build.log" 2>&1 &
+  TSAN_BUILD_PID=$!
+}
+
+# wait_for_build NAME PID-VARIABLE LOG: waits for a background build; its log when it failed.
+wait_for_build() {
+  local name=$1 pid=${!2} log=$3
+  say "Waiting for the $name build"
+  if ! wait "$pid"; then
+    printf -v "$2" '%s' ""
+    cat "$log"
+    die "the $name build failed"
   fi
-  printf -- '--- thread sanitizer build (%s, in the background): done %ds after the start\n' \
-    "$TSAN_BUILD_DIR" $((SECONDS - start))
+  printf -v "$2" '%s' ""
+  printf -- '--- %s build (in the background): done %ds after the start of the sanitizer builds\n' \
+    "$name" $((SECONDS - SANITIZER_BUILDS_START))
+}
+
+sanitizer_passes() {
+  [[ -n "$SANITIZER_BUILDS_START" ]] || return 0
+  wait_for_build "ASan+UBSan ($ASAN_BUILD_DIR)" ASAN_BUILD_PID "$ASAN_BUILD_DIR/build.log"
+  timed "ASan+UBSan tests ($ASAN_BUILD_DIR)" asan_tests
+  wait_for_build "ThreadSanitizer ($TSAN_BUILD_DIR)" TSAN_BUILD_PID "$TSAN_BUILD_DIR/build.log"
   timed "thread sanitizer tests ($TSAN_BUILD_DIR)" thread_sanitizer_tests
 }
 
 INSTALL_TMP=
+ASAN_BUILD_PID=
 TSAN_BUILD_PID=
-kill_tree() { # PID and its descendants (the background build's cmake, ninja and compilers)
+kill_tree() { # PID and its descendants (the background builds' cmake, ninja and compilers)
   local child
   if command -v pgrep >/dev/null 2>&1; then
     for child in $(pgrep -P "$1" || true); do kill_tree "$child"; done
@@ -191,6 +219,7 @@ kill_tree() { # PID and its descendants (the background build's cmake, ninja and
   kill "$1" 2>/dev/null || true
 }
 cleanup() {
+  [[ -z "$ASAN_BUILD_PID" ]] || kill_tree "$ASAN_BUILD_PID"
   [[ -z "$TSAN_BUILD_PID" ]] || kill_tree "$TSAN_BUILD_PID"
   [[ -z "$INSTALL_TMP" ]] || rm -rf "$INSTALL_TMP"
 }
@@ -205,7 +234,12 @@ else
 fi
 timed "warning flags" check_warning_flags
 timed "ctest ($FRICTION_BUILD_DIR)" run_ctest "$FRICTION_BUILD_DIR"
+start_sanitizer_builds
 timed "browser check of the reports" bash scripts/check-reports.sh
 timed "install test" install_test
+sanitizer_start=$SECONDS
 timed "sanitizer passes (ASan+UBSan, TSan)" sanitizer_passes
+[[ -z "$SANITIZER_BUILDS_START" ]] ||
+  printf -- '--- sanitizer stage from the start of its builds: %ds (%ds of it after the install test)\n' \
+    $((SECONDS - SANITIZER_BUILDS_START)) $((SECONDS - sanitizer_start))
 say "All tests passed ($((SECONDS - total_start))s)"

@@ -46,42 +46,80 @@ print(" ".join(f["effect"] for f in json.load(open(sys.argv[1]))["findings"]))' 
 }
 # ------------------------------------------------------------------------------------------------
 
-missing_packages() {
+missing_packages() { # missing_packages PACKAGE...: those not installed
   local p
-  for p in "${FRICTION_PACKAGES[@]}"; do
+  for p in "$@"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || echo "$p"
   done
 }
 
-install_packages() {
+APT=()  # how to run apt-get here (with sudo when not root); empty when this is not Debian-like
+apt_command() {
   if ! command -v dpkg-query >/dev/null 2>&1 || ! command -v apt-get >/dev/null 2>&1; then
     echo "warning: not a Debian-like system (no dpkg-query/apt-get); make sure these are" \
-      "installed: ${FRICTION_PACKAGES[*]}" >&2
-    return 0
-  fi
-  local missing
-  mapfile -t missing < <(missing_packages)
-  if ((${#missing[@]} == 0)); then
-    say "All ${#FRICTION_PACKAGES[@]} Debian packages are installed"
+      "installed: ${FRICTION_PACKAGES[*]} ${FRICTION_TEST_PACKAGES[*]}" >&2
     return 0
   fi
   local -a sudo=()
   if ((EUID != 0)); then
-    command -v sudo >/dev/null 2>&1 ||
-      die "missing packages (${missing[*]}) and not root and no sudo: install them, then rerun"
+    if ! command -v sudo >/dev/null 2>&1; then
+      local missing
+      missing=$(missing_packages "${FRICTION_PACKAGES[@]}" "${FRICTION_TEST_PACKAGES[@]}")
+      [[ -z "$missing" ]] ||
+        die "missing packages ($(echo $missing)) and not root and no sudo: install them, then rerun"
+      return 0
+    fi
     sudo=(sudo)
     [[ -t 0 ]] || sudo=(sudo -n) # no terminal (CI): fail rather than wait for a password
   fi
-  say "Installing missing packages: ${missing[*]}"
-  export DEBIAN_FRONTEND=noninteractive
-  "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update
-  "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends \
-    "${missing[@]}"
+  APT=("${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get)
 }
+
+# The build's packages now; the browser check's (chromium and what it pulls in, the largest
+# download) in the background while the build runs, waited for at the end.
+TEST_PACKAGES_PID=
+TEST_PACKAGES_LOG=
+install_packages() {
+  apt_command
+  ((${#APT[@]} > 0)) || return 0
+  local build test
+  mapfile -t build < <(missing_packages "${FRICTION_PACKAGES[@]}")
+  mapfile -t test < <(missing_packages "${FRICTION_TEST_PACKAGES[@]}")
+  if ((${#build[@]} + ${#test[@]} == 0)); then
+    say "All $((${#FRICTION_PACKAGES[@]} + ${#FRICTION_TEST_PACKAGES[@]})) Debian packages are installed"
+    return 0
+  fi
+  "${APT[@]}" update
+  if ((${#build[@]} > 0)); then
+    say "Installing missing packages: ${build[*]}"
+    "${APT[@]}" install -y --no-install-recommends "${build[@]}"
+  fi
+  if ((${#test[@]} > 0)); then
+    TEST_PACKAGES_LOG=$(mktemp "${TMPDIR:-/tmp}/friction-packages.XXXXXX")
+    say "Installing ${test[*]} in the background (for run-tests.sh; log: $TEST_PACKAGES_LOG)"
+    "${APT[@]}" install -y --no-install-recommends "${test[@]}" >"$TEST_PACKAGES_LOG" 2>&1 &
+    TEST_PACKAGES_PID=$!
+  fi
+}
+
+wait_for_test_packages() {
+  [[ -n "$TEST_PACKAGES_PID" ]] || return 0
+  local pid=$TEST_PACKAGES_PID
+  TEST_PACKAGES_PID=
+  if ! wait "$pid"; then
+    cat "$TEST_PACKAGES_LOG"
+    die "installing ${FRICTION_TEST_PACKAGES[*]} failed"
+  fi
+  rm -f "$TEST_PACKAGES_LOG"
+}
+# When the build or the main job fails, apt-get is let finish (a dpkg stopped half-way leaves the
+# system needing `dpkg --configure -a`).
+trap '[[ -z "$TEST_PACKAGES_PID" ]] || wait "$TEST_PACKAGES_PID" 2>/dev/null || true' EXIT
 
 timed "packages" install_packages
 timed "configure + build ($FRICTION_BUILD_DIR)" configure_and_build "$FRICTION_BUILD_DIR" \
   -DCMAKE_BUILD_TYPE=Release
 say "Main job"
 timed "main job" main_job
+timed "browser check's packages (installed in the background)" wait_for_test_packages
 say "setup.sh done"
