@@ -18,8 +18,7 @@
 #      hold them): diagnose's candidates on four threads, LG's global stages on concurrent
 #      threads, compare's three methods on concurrent threads (test_concurrency).
 #      FRICTION_SKIP_SANITIZERS=1 skips it too.
-#   The builds of steps 6 and 7 start in the background, at a lower priority, when step 3 has
-#   passed, and so run beside steps 4 and 5.
+#   Steps 6 and 7 start in the background when step 3 has passed, and so run beside steps 4 and 5.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 cd "$FRICTION_ROOT"
@@ -160,57 +159,65 @@ thread_sanitizer_tests() {
   return "$status"
 }
 
-# The sanitizer builds start in the background as soon as the Release tests have passed, at a
-# lower priority (nice 10), so that they take the core the browser check and the install test
-# leave idle (the browser check: 45 s on the clock for 42 CPU-s) without slowing them down.
-# Their output goes to logs, shown when a build fails.
-SANITIZER_BUILDS_START=
-start_sanitizer_builds() {
+# The sanitizer passes start in the background as soon as the Release tests have passed, beside
+# the browser check and the install test (the browser check: 45 s on the clock for 42 CPU-s).
+# The ThreadSanitizer pass is one chain of single jobs (the library's one translation unit, then
+# three test programs, then their tests): it is the longest path, so it keeps the normal
+# priority and runs its tests as soon as they are built.  The ASan+UBSan build runs at a lower
+# priority (nice 10) on what is left, then its tests in the foreground.  (With both builds at
+# nice 10 and the TSan tests after the ASan+UBSan tests, a clean clone's sanitizer stage took
+# 618 s from the start of its builds: the TSan library, starved, finished 591 s in.)  Output goes
+# to logs, shown when a step fails.
+SANITIZER_START=
+start_sanitizer_passes() {
   if [[ "${FRICTION_SKIP_SANITIZERS:-0}" == 1 ]]; then
     say "Skipping the sanitizer passes (FRICTION_SKIP_SANITIZERS=1)"
     return 0
   fi
   mkdir -p "$ASAN_BUILD_DIR" "$TSAN_BUILD_DIR"
-  say "Building the ASan+UBSan tests ($ASAN_BUILD_DIR/build.log) and the ThreadSanitizer tests" \
-    "($TSAN_BUILD_DIR/build.log) in the background"
-  SANITIZER_BUILDS_START=$SECONDS
+  say "In the background: the ASan+UBSan build ($ASAN_BUILD_DIR/build.log), the ThreadSanitizer" \
+    "build and tests ($TSAN_BUILD_DIR/build.log, $TSAN_BUILD_DIR/tests.log)"
+  SANITIZER_START=$SECONDS
   (
     renice -n 10 -p "$BASHPID" >/dev/null
     asan_build
   ) >"$ASAN_BUILD_DIR/build.log" 2>&1 &
   ASAN_BUILD_PID=$!
   (
-    renice -n 10 -p "$BASHPID" >/dev/null
-    thread_sanitizer_build 1
-  ) >"$TSAN_BUILD_DIR/build.log" 2>&1 &
-  TSAN_BUILD_PID=$!
-}
-
-# wait_for_build NAME PID-VARIABLE LOG: waits for a background build; its log when it failed.
-wait_for_build() {
-  local name=$1 pid=${!2} log=$3
-  say "Waiting for the $name build"
-  if ! wait "$pid"; then
-    printf -v "$2" '%s' ""
-    cat "$log"
-    die "the $name build failed"
-  fi
-  printf -v "$2" '%s' ""
-  printf -- '--- %s build (in the background): done %ds after the start of the sanitizer builds\n' \
-    "$name" $((SECONDS - SANITIZER_BUILDS_START))
+    thread_sanitizer_build 1 >"$TSAN_BUILD_DIR/build.log" 2>&1 ||
+      { echo "the ThreadSanitizer build failed:"; cat "$TSAN_BUILD_DIR/build.log"; exit 1; }
+    printf -- '--- thread sanitizer build (%s): done %ds after the start of the sanitizer passes\n' \
+      "$TSAN_BUILD_DIR" $((SECONDS - SANITIZER_START))
+    timed "thread sanitizer tests ($TSAN_BUILD_DIR)" thread_sanitizer_tests
+  ) >"$TSAN_BUILD_DIR/tests.log" 2>&1 &
+  TSAN_PID=$!
 }
 
 sanitizer_passes() {
-  [[ -n "$SANITIZER_BUILDS_START" ]] || return 0
-  wait_for_build "ASan+UBSan ($ASAN_BUILD_DIR)" ASAN_BUILD_PID "$ASAN_BUILD_DIR/build.log"
+  [[ -n "$SANITIZER_START" ]] || return 0
+  say "Waiting for the ASan+UBSan build"
+  local pid=$ASAN_BUILD_PID
+  if ! wait "$pid"; then
+    ASAN_BUILD_PID=
+    cat "$ASAN_BUILD_DIR/build.log"
+    die "the ASan+UBSan build failed"
+  fi
+  ASAN_BUILD_PID=
+  printf -- '--- ASan+UBSan build (%s, in the background): done %ds after the start of the sanitizer passes\n' \
+    "$ASAN_BUILD_DIR" $((SECONDS - SANITIZER_START))
   timed "ASan+UBSan tests ($ASAN_BUILD_DIR)" asan_tests
-  wait_for_build "ThreadSanitizer ($TSAN_BUILD_DIR)" TSAN_BUILD_PID "$TSAN_BUILD_DIR/build.log"
-  timed "thread sanitizer tests ($TSAN_BUILD_DIR)" thread_sanitizer_tests
+  say "Waiting for the ThreadSanitizer pass"
+  pid=$TSAN_PID
+  local status=0
+  wait "$pid" || status=$?
+  TSAN_PID=
+  cat "$TSAN_BUILD_DIR/tests.log"
+  ((status == 0)) || die "the ThreadSanitizer pass failed"
 }
 
 INSTALL_TMP=
 ASAN_BUILD_PID=
-TSAN_BUILD_PID=
+TSAN_PID=
 kill_tree() { # PID and its descendants (the background builds' cmake, ninja and compilers)
   local child
   if command -v pgrep >/dev/null 2>&1; then
@@ -220,7 +227,7 @@ kill_tree() { # PID and its descendants (the background builds' cmake, ninja and
 }
 cleanup() {
   [[ -z "$ASAN_BUILD_PID" ]] || kill_tree "$ASAN_BUILD_PID"
-  [[ -z "$TSAN_BUILD_PID" ]] || kill_tree "$TSAN_BUILD_PID"
+  [[ -z "$TSAN_PID" ]] || kill_tree "$TSAN_PID"
   [[ -z "$INSTALL_TMP" ]] || rm -rf "$INSTALL_TMP"
 }
 trap cleanup EXIT
@@ -234,12 +241,12 @@ else
 fi
 timed "warning flags" check_warning_flags
 timed "ctest ($FRICTION_BUILD_DIR)" run_ctest "$FRICTION_BUILD_DIR"
-start_sanitizer_builds
+start_sanitizer_passes
 timed "browser check of the reports" bash scripts/check-reports.sh
 timed "install test" install_test
-sanitizer_start=$SECONDS
+sanitizer_wait=$SECONDS
 timed "sanitizer passes (ASan+UBSan, TSan)" sanitizer_passes
-[[ -z "$SANITIZER_BUILDS_START" ]] ||
-  printf -- '--- sanitizer stage from the start of its builds: %ds (%ds of it after the install test)\n' \
-    $((SECONDS - SANITIZER_BUILDS_START)) $((SECONDS - sanitizer_start))
+[[ -z "$SANITIZER_START" ]] ||
+  printf -- '--- sanitizer stage from its start: %ds (%ds of it after the install test)\n' \
+    $((SECONDS - SANITIZER_START)) $((SECONDS - sanitizer_wait))
 say "All tests passed ($((SECONDS - total_start))s)"
