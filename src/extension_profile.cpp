@@ -205,8 +205,13 @@ ProfileScales profile_scales(const Record& r, const ExtendedSlipRun& run, double
   const std::vector<std::size_t> turns = turning_points(r.displacement, h);
   // Between extremes only: the detector also returns the first and the last sample.
   s.reversal_interval = s.duration;
-  for (std::size_t i = 2; i + 1 < turns.size(); ++i)
-    s.reversal_interval = std::min(s.reversal_interval, r.time[turns[i]] - r.time[turns[i - 1]]);
+  s.longest_reversal_interval = 0;
+  for (std::size_t i = 2; i + 1 < turns.size(); ++i) {
+    const double interval = r.time[turns[i]] - r.time[turns[i - 1]];
+    s.reversal_interval = std::min(s.reversal_interval, interval);
+    s.longest_reversal_interval = std::max(s.longest_reversal_interval, interval);
+  }
+  if (!(s.longest_reversal_interval > 0)) s.longest_reversal_interval = s.duration;
   return s;
 }
 

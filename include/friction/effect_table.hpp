@@ -819,6 +819,7 @@ struct ProfileScales {
   double travel = 0;             ///< max x - min x [m]
   double sample_travel = 0;      ///< median |dx| while moving [m]
   double reversal_interval = 0;  ///< shortest interval between two reversals [s]
+  double longest_reversal_interval = 0;  ///< longest interval between two reversals [s]
   double duration = 0;           ///< T [s]
   double sample_period = 0;      ///< Ts [s]
 };
