@@ -8,8 +8,8 @@ FRICTION_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 FRICTION_BUILD_DIR="${FRICTION_BUILD_DIR:-build}"
 FRICTION_JOBS="${FRICTION_JOBS:-$(nproc 2>/dev/null || echo 2)}"
 
-# The Debian packages the build needs (README and CI rely on this list); chromium and python3 for
-# the browser check of the HTML reports (scripts/check-reports.sh).
+# The Debian packages the build and the main job need (README and CI rely on this list); python3
+# also for the browser check of the HTML reports (scripts/check-reports.sh).
 FRICTION_PACKAGES=(cmake ninja-build g++ libeigen3-dev libceres-dev libnlopt-cxx-dev
   libsundials-dev libgtest-dev libcli11-dev nlohmann-json3-dev libbenchmark-dev python3)
 # Needed by run-tests.sh only (the browser check of the reports); setup.sh installs them while
