@@ -53,8 +53,8 @@ ProfiledStart lag_with_stribeck(const Record& r, const ProfiledStart& from,
   const ProfileScales& s = pc.scales;
   const double lo = 0.5 * s.sample_period;
   // Within the lag's box (effect_table.hpp: a quarter of the record).
-  const double hi = std::max(std::min(s.longest_reversal_interval, s.duration / 4),
-                             2 * s.sample_period);
+  const double hi =
+      std::max(std::min(s.longest_reversal_interval, s.duration / 4), 2 * s.sample_period);
   const int points =
       static_cast<int>(std::max(12.0, std::ceil(std::log(hi / lo) / std::log(1.5)) + 1.0));
   ProfiledStart best = from;

@@ -814,14 +814,14 @@ inline PieceStart start_from_regression(Effect e, const RegressionSignals& s) {
 
 /// The scales of a record the profiles' ranges follow from.
 struct ProfileScales {
-  double reference_force = 0;    ///< F0 [N]
-  double sliding_speed_95 = 0;   ///< 95th percentile of |v| while sliding [m/s]
-  double travel = 0;             ///< max x - min x [m]
-  double sample_travel = 0;      ///< median |dx| while moving [m]
-  double reversal_interval = 0;  ///< shortest interval between two reversals [s]
+  double reference_force = 0;            ///< F0 [N]
+  double sliding_speed_95 = 0;           ///< 95th percentile of |v| while sliding [m/s]
+  double travel = 0;                     ///< max x - min x [m]
+  double sample_travel = 0;              ///< median |dx| while moving [m]
+  double reversal_interval = 0;          ///< shortest interval between two reversals [s]
   double longest_reversal_interval = 0;  ///< longest interval between two reversals [s]
-  double duration = 0;           ///< T [s]
-  double sample_period = 0;      ///< Ts [s]
+  double duration = 0;                   ///< T [s]
+  double sample_period = 0;              ///< Ts [s]
 };
 
 /// One axis of a profile: a parameter (methods.md 7 name) and its grid.
