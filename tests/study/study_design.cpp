@@ -499,9 +499,22 @@ StudyRecord make_record(const RecordSpec& spec) {
 
   // The truth, in SI and the library's names.
   const Effects& fx = r.system.effects;
+  // A level in newtons is a level at some normal force.  The simulator's are at N0 (the normal
+  // programs' mean parameter); methods.md 7 defines normal-load as level proportional to N(t),
+  // and the library states its levels at the estimation record's mean normal force (effect_table:
+  // level N(t)/N_mean), which differs from N0 by what the finite record averages of the
+  // program's sines.  So the truth of a level in N is the simulator's scaled to that force
+  // (without normal-load the scale is 1).
+  double at_mean_normal = 1;
+  if (fx.normal_load && !r.trace_estimation.normal.empty()) {
+    double sum = 0;
+    for (double v : r.trace_estimation.normal) sum += v;
+    at_mean_normal =
+        sum / static_cast<double>(r.trace_estimation.normal.size()) / r.normal_estimation->mean;
+  }
   if (fx.viscous) r.truth.push_back({"viscous", "viscous", *fx.viscous, true});
   if (fx.stribeck) {
-    r.truth.push_back({"stribeck", "static", fx.stribeck->static_force, false});
+    r.truth.push_back({"stribeck", "static", fx.stribeck->static_force * at_mean_normal, false});
     r.truth.push_back({"stribeck", "stribeck_velocity", fx.stribeck->velocity, false});
     r.truth.push_back({"stribeck", "stribeck_exponent", fx.stribeck->exponent, false});
   }
@@ -510,8 +523,8 @@ StudyRecord make_record(const RecordSpec& spec) {
   if (fx.offset) r.truth.push_back({"offset", "offset", *fx.offset, true});
   if (fx.mass) r.truth.push_back({"inertia", "mass", *fx.mass, true});
   if (fx.position) {
-    r.truth.push_back(
-        {"position-dependence", "amplitude", fx.position->relative_amplitude * fc, true});
+    r.truth.push_back({"position-dependence", "amplitude",
+                       fx.position->relative_amplitude * fc * at_mean_normal, true});
     r.truth.push_back({"position-dependence", "wavelength", fx.position->wavelength, true});
   }
   if (fx.drift_rate) r.truth.push_back({"drift", "relative_rate", *fx.drift_rate, true});
