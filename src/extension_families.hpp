@@ -536,11 +536,24 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
   const double* params[2] = {theta.data(), state.data()};
   double* jac[2] = {j0.data(), j1.data()};
   if (!cost->Evaluate(params, residual.data(), jac)) return out;
+  // A parameter the force does not feel is not estimated by the record, and it is left out
+  // rather than scaled up: an operator whose stiffness went to ~0 (1e-9 N/m beside 1e5) has
+  // columns of ~1e-14 N, which the unit-norm scaling below would turn into full columns of its
+  // shape, and their chance alignment with a piece's column (a clamp of x against the
+  // asymmetry's sign of the motion) then made that piece "not estimable" on a record where it was
+  // estimated to three digits.  Negligible: an e-fold of the parameter (one unit of its
+  // log-parametrised column) moves the RSS by less than 1e-12 of one noise variance.
+  const double negligible = 1e-12 * sum_sq(residual) / static_cast<double>(n);
+  const auto felt = [&](const std::vector<double>& jac, std::size_t stride, std::size_t c) {
+    double s = 0;
+    for (std::size_t k = 0; k < n; ++k) s += jac[k * stride + c] * jac[k * stride + c];
+    return s >= negligible;
+  };
   std::vector<std::size_t>& cols = out.columns;
   for (std::size_t c = 0; c < nt; ++c)
-    if (free_theta[c]) cols.push_back(c);
+    if (free_theta[c] && felt(j0, nt, c)) cols.push_back(c);
   for (std::size_t c = 0; c < ns; ++c)
-    if (free_state[c]) cols.push_back(nt + c);
+    if (free_state[c] && felt(j1, ns, c)) cols.push_back(nt + c);
   const std::size_t p = cols.size();
   if (p == 0 || n <= p) return out;
   Eigen::MatrixXd J(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(p));

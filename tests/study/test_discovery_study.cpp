@@ -818,6 +818,30 @@ TEST(DiscoveryStudy, ToldLagBeyondTheShortestIntervalBetweenReversals) {
   EXPECT_EQ(judged, 4);  // static, stribeck_velocity, stribeck_exponent, lag_time
 }
 
+// A regression test (label long, its own record): the diagnosis of `asymmetry-3` at seed
+// 4142990654516801226 ended with one of its four operators at a stiffness of ~1e-9 N/m (beside
+// 1e5) and gave the asymmetry, estimated to three digits, no standard error: that operator's
+// columns, ~1e-14 N, scaled to unit norm, made the covariance rank-deficient along the piece.
+// Every parameter of the named effects must have a standard error and lie within 3 of them.
+TEST(DiscoveryStudy, APieceBesideAnOperatorTheForceDoesNotFeelHasAStandardError) {
+  const std::string id = "asymmetry-3";
+  std::vector<RecordSpec> plan = study_plan(4142990654516801226ULL);
+  std::erase_if(plan, [&](const RecordSpec& s) { return s.id != id; });
+  ASSERT_EQ(plan.size(), 1u);
+  const fs::path dir = fs::current_path() / "study-output" / "standard-error-regression";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const Outcome o = run_record(plan[0], dir);
+  ASSERT_TRUE(o.error.empty()) << o.error;
+  EXPECT_TRUE(o.exact()) << o.summary;
+  ASSERT_EQ(o.parameters.size(), 1u);  // asymmetry
+  for (const ParameterOutcome& p : o.parameters) {
+    ASSERT_TRUE(p.standard_error > 0) << p.effect << " " << p.name << " has no standard error";
+    EXPECT_LE(std::abs(p.z()), 3.0) << p.effect << " " << p.name << ": " << p.estimate
+                                    << " against " << p.truth << ", z " << p.z();
+  }
+}
+
 TEST(DiscoveryStudy, NonlocalMemoryOnALugreBaseline) {
   const auto [seed, origin] = study_seed();
   std::vector<RecordSpec> plan;
