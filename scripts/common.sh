@@ -30,6 +30,20 @@ timed() {
   printf -- '--- %s: %ds\n' "$label" $((SECONDS - start))
 }
 
+# Wait for a job started in the background with its output in LOG; show the log when the job
+# failed (and also when it passed, with `always`) and stop with MESSAGE when it failed.
+# Usage: wait_for_job VAR LOG MESSAGE [always], VAR naming the variable that holds the job's PID.
+# VAR is cleared once the job has ended, not before: an EXIT trap that kills or waits for the jobs
+# it finds there still reaches a job interrupted while this waits.
+wait_for_job() {
+  local -n job_pid=$1
+  local log=$2 message=$3 show=${4:-} status=0
+  wait "$job_pid" || status=$?
+  job_pid=
+  if ((status != 0)) || [[ "$show" == always ]]; then cat "$log"; fi
+  ((status == 0)) || die "$message"
+}
+
 # Configure (only when there is no build yet, or when extra cache options are given) and build.
 # Usage: configure_and_build DIR [cmake -D options...]
 configure_and_build() {

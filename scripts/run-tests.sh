@@ -196,23 +196,12 @@ start_sanitizer_passes() {
 sanitizer_passes() {
   [[ -n "$SANITIZER_START" ]] || return 0
   say "Waiting for the ASan+UBSan build"
-  local pid=$ASAN_BUILD_PID
-  if ! wait "$pid"; then
-    ASAN_BUILD_PID=
-    cat "$ASAN_BUILD_DIR/build.log"
-    die "the ASan+UBSan build failed"
-  fi
-  ASAN_BUILD_PID=
+  wait_for_job ASAN_BUILD_PID "$ASAN_BUILD_DIR/build.log" "the ASan+UBSan build failed"
   printf -- '--- ASan+UBSan build (%s, in the background): done %ds after the start of the sanitizer passes\n' \
     "$ASAN_BUILD_DIR" $((SECONDS - SANITIZER_START))
   timed "ASan+UBSan tests ($ASAN_BUILD_DIR)" asan_tests
   say "Waiting for the ThreadSanitizer pass"
-  pid=$TSAN_PID
-  local status=0
-  wait "$pid" || status=$?
-  TSAN_PID=
-  cat "$TSAN_BUILD_DIR/tests.log"
-  ((status == 0)) || die "the ThreadSanitizer pass failed"
+  wait_for_job TSAN_PID "$TSAN_BUILD_DIR/tests.log" "the ThreadSanitizer pass failed" always
 }
 
 INSTALL_TMP=

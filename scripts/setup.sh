@@ -104,12 +104,7 @@ install_packages() {
 
 wait_for_test_packages() {
   [[ -n "$TEST_PACKAGES_PID" ]] || return 0
-  local pid=$TEST_PACKAGES_PID
-  TEST_PACKAGES_PID=
-  if ! wait "$pid"; then
-    cat "$TEST_PACKAGES_LOG"
-    die "installing ${FRICTION_TEST_PACKAGES[*]} failed"
-  fi
+  wait_for_job TEST_PACKAGES_PID "$TEST_PACKAGES_LOG" "installing ${FRICTION_TEST_PACKAGES[*]} failed"
   rm -f "$TEST_PACKAGES_LOG"
 }
 # When the build or the main job fails, apt-get is let finish (a dpkg stopped half-way leaves the
