@@ -538,11 +538,13 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
   if (!cost->Evaluate(params, residual.data(), jac)) return out;
   // A parameter the force does not feel is not estimated by the record, and it is left out
   // rather than scaled up: an operator whose stiffness went to ~0 (1e-9 N/m beside 1e5) has
-  // columns of ~1e-14 N, which the unit-norm scaling below would turn into full columns of its
-  // shape, and their chance alignment with a piece's column (a clamp of x against the
-  // asymmetry's sign of the motion) then made that piece "not estimable" on a record where it was
-  // estimated to three digits.  Negligible: an e-fold of the parameter (one unit of its
-  // log-parametrised column) moves the RSS by less than 1e-12 of one noise variance.
+  // columns of ~1e-14 N, which the unit-norm scaling below would turn into full columns of their
+  // shape; on one study record (DiscoveryStudy.APieceBesideAnOperatorTheForceDoesNotFeelHas...)
+  // they then formed a null direction with the asymmetry's column, and the asymmetry, estimated
+  // to three digits, was reported "not estimable".  Negligible: a step of one in the parameter
+  // (an e-fold for the log-parametrised ones, one SI unit for the others) moves the RSS by less
+  // than 1e-12 of the residual's variance, i.e. its standard error alone would exceed 1e6 of
+  // those steps.
   const double negligible = 1e-12 * sum_sq(residual) / static_cast<double>(n);
   const auto felt = [&](const std::vector<double>& jac, std::size_t stride, std::size_t c) {
     double s = 0;
