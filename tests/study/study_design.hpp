@@ -102,6 +102,14 @@ struct StudyRecord {
   std::string summary() const;
 };
 
+/// SplitMix64: the study's seed mixer (record seeds from the study seed).
+std::uint64_t splitmix(std::uint64_t x);
+
+/// The discovery study's plan for `seed` (test_discovery_study.cpp says what it holds): every
+/// effect alone (three records each), frictional lag with viscous or Stribeck, nine random pairs
+/// and 22 records with no effect.  Shared with resimulate_record, which rebuilds one of them.
+std::vector<RecordSpec> study_plan(std::uint64_t seed);
+
 /// Draws and simulates the record `spec` describes.
 StudyRecord make_record(const RecordSpec& spec);
 

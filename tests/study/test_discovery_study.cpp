@@ -58,13 +58,6 @@ namespace {
 using Json = nlohmann::json;
 namespace fs = std::filesystem;
 
-std::uint64_t splitmix(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
-
 std::string read_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   std::stringstream s;
@@ -140,48 +133,6 @@ std::vector<std::string> split_options(const std::string& shell) {
 }
 
 // ------------------------------------------------------------------------------- the plan
-
-std::vector<RecordSpec> study_plan(std::uint64_t seed) {
-  std::vector<RecordSpec> plan;
-  std::mt19937_64 gen(splitmix(seed));
-  auto family = [&] { return static_cast<Family>(std::uniform_int_distribution<int>(0, 2)(gen)); };
-  auto add = [&](std::string id, std::vector<std::string> effects) {
-    RecordSpec s;
-    s.id = std::move(id);
-    s.effects = std::move(effects);
-    s.family = family();
-    s.seed = splitmix(seed ^ splitmix(plan.size() + 1));
-    plan.push_back(s);
-  };
-  std::vector<std::string> singles;
-  for (const std::string& e : injectable_effects())
-    if (e != "frictional-lag") singles.push_back(e);
-  for (const std::string& e : singles)
-    for (int i = 1; i <= 3; ++i) add(e + "-" + std::to_string(i), {e});
-  add("frictional-lag+viscous-1", {"frictional-lag", "viscous"});
-  add("frictional-lag+viscous-2", {"frictional-lag", "viscous"});
-  add("frictional-lag+stribeck-1", {"frictional-lag", "stribeck"});
-  add("frictional-lag+stribeck-2", {"frictional-lag", "stribeck"});
-  std::vector<std::pair<std::string, std::string>> pairs;
-  for (std::size_t i = 0; i < singles.size(); ++i)
-    for (std::size_t j = i + 1; j < singles.size(); ++j)
-      // Not simulated together: a delay with a normal load (whose channel would need a delay of
-      // its own), and an offset with an asymmetry, which at a constant level are one offset
-      // (pair_separated): no record could show both.
-      if (!((singles[i] == "delay" && singles[j] == "normal-load") ||
-            (singles[i] == "normal-load" && singles[j] == "delay") ||
-            (singles[i] == "offset" && singles[j] == "asymmetry") ||
-            (singles[i] == "asymmetry" && singles[j] == "offset")))
-        pairs.emplace_back(singles[i], singles[j]);
-  std::shuffle(pairs.begin(), pairs.end(), gen);
-  for (int i = 0; i < 9; ++i)
-    add(pairs[static_cast<std::size_t>(i)].first + "+" + pairs[static_cast<std::size_t>(i)].second,
-        {pairs[static_cast<std::size_t>(i)].first, pairs[static_cast<std::size_t>(i)].second});
-  for (int i = 1; i <= 22; ++i) {
-    add((i < 10 ? "none-0" : "none-") + std::to_string(i), {});
-  }
-  return plan;
-}
 
 // ------------------------------------------------------------------------------- scoring
 
