@@ -43,37 +43,31 @@ int main(int argc, char** argv) {
         throw std::invalid_argument("unknown argument '" + a + "'");
       }
     }
-    for (const RecordSpec& spec : study_plan(seed)) {
-      if (spec.id != id) continue;
-      StudyRecord r = make_record(spec);
-      if (!encoder || !noise || rate_factor != 1) {
-        for (Measurement* m : {&r.estimation, &r.validation}) {
-          if (!encoder) m->quantum = 0;
-          if (!noise) m->noise_sigma = 1e-6 * r.system.coulomb, m->noise_phi = 0;
-          m->sampling_rate *= rate_factor;
-          m->samples = static_cast<std::size_t>(static_cast<double>(m->samples) * rate_factor);
-        }
-        const NormalProgram* ne = r.normal_estimation ? &*r.normal_estimation : nullptr;
-        const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;
-        r.trace_estimation = simulate(r.system, *r.motion_estimation, ne, r.estimation);
-        r.trace_validation = simulate(r.system, *r.motion_validation, nv, r.validation);
-      }
-      std::filesystem::create_directories(dir);
-      write_csv(r, true, (dir / "estimation.csv").string());
-      write_csv(r, false, (dir / "validation.csv").string());
-      std::ofstream(dir / "read-options.txt") << r.read_options() << "\n";
-      std::ofstream truth(dir / "truth.json");
-      truth.precision(17);
-      truth << "{\"summary\": \"" << r.summary() << "\", \"parameters\": [";
-      for (std::size_t i = 0; i < r.truth.size(); ++i)
-        truth << (i ? ", " : "") << "{\"effect\": \"" << r.truth[i].effect << "\", \"name\": \""
-              << r.truth[i].name << "\", \"value\": " << r.truth[i].value << "}";
-      truth << "]}\n";
-      std::printf("%s\n", r.summary().c_str());
-      return 0;
+    const std::optional<RecordSpec> spec = plan_record(seed, id);
+    if (!spec) {
+      std::fprintf(stderr, "error: no record '%s' in the plan of seed %s\n", id.c_str(), argv[1]);
+      return 1;
     }
-    std::fprintf(stderr, "error: no record '%s' in the plan of seed %s\n", id.c_str(), argv[1]);
-    return 1;
+    StudyRecord r = make_record(*spec);
+    if (!encoder || !noise || rate_factor != 1) {
+      for (Measurement* m : {&r.estimation, &r.validation}) {
+        if (!encoder) m->quantum = 0;
+        if (!noise) m->noise_sigma = 1e-6 * r.system.coulomb, m->noise_phi = 0;
+        m->sampling_rate *= rate_factor;
+        m->samples = static_cast<std::size_t>(static_cast<double>(m->samples) * rate_factor);
+      }
+      const NormalProgram* ne = r.normal_estimation ? &*r.normal_estimation : nullptr;
+      const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;
+      r.trace_estimation = simulate(r.system, *r.motion_estimation, ne, r.estimation);
+      r.trace_validation = simulate(r.system, *r.motion_validation, nv, r.validation);
+    }
+    std::filesystem::create_directories(dir);
+    write_csv(r, true, (dir / "estimation.csv").string());
+    write_csv(r, false, (dir / "validation.csv").string());
+    std::ofstream(dir / "read-options.txt") << r.read_options() << "\n";
+    write_truth(r, (dir / "truth.json").string());
+    std::printf("%s\n", r.summary().c_str());
+    return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 1;

@@ -1,6 +1,8 @@
 // The records of the discovery study (see study_design.hpp).
 #include "study_design.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -697,6 +699,21 @@ std::vector<RecordSpec> study_plan(std::uint64_t seed) {
     add((i < 10 ? "none-0" : "none-") + std::to_string(i), {});
   }
   return plan;
+}
+
+std::optional<RecordSpec> plan_record(std::uint64_t seed, const std::string& id) {
+  for (RecordSpec& s : study_plan(seed))
+    if (s.id == id) return std::move(s);
+  return std::nullopt;
+}
+
+void write_truth(const StudyRecord& r, const std::string& path) {
+  nlohmann::json t = nlohmann::json::array();
+  for (const TrueParameter& p : r.truth)
+    t.push_back({{"effect", p.effect}, {"name", p.name}, {"value", p.value}});
+  std::ofstream out(path);
+  out << nlohmann::json{{"summary", r.summary()}, {"parameters", t}}.dump(1) << "\n";
+  if (!out) throw std::runtime_error("truth::write_truth: write failed for " + path);
 }
 
 }  // namespace truth

@@ -110,11 +110,18 @@ std::uint64_t splitmix(std::uint64_t x);
 /// and 22 records with no effect.  Shared with resimulate_record, which rebuilds one of them.
 std::vector<RecordSpec> study_plan(std::uint64_t seed);
 
+/// The record `id` of study_plan(seed), or nothing when the plan has no such record.
+std::optional<RecordSpec> plan_record(std::uint64_t seed, const std::string& id);
+
 /// Draws and simulates the record `spec` describes.
 StudyRecord make_record(const RecordSpec& spec);
 
 /// Writes the estimation or validation trace as the record's file format says.
 void write_csv(const StudyRecord& r, bool estimation, const std::string& path);
+
+/// Writes the record's truth (TrueParameter list and summary) as JSON: {"summary": ...,
+/// "parameters": [{"effect", "name", "value"}, ...]}.
+void write_truth(const StudyRecord& r, const std::string& path);
 
 /// The same record without `effects` (the same system otherwise, the same motions and the same
 /// noise realisation): what a base model without those pieces can reach.  Its expected set and

@@ -83,13 +83,6 @@ std::pair<std::uint64_t, std::string> study_seed() {
 
 /// The true parameters of a record's effects (SI units, whatever units its CSV files use), beside
 /// its files, for whoever looks at a record again.
-void write_truth(const StudyRecord& r, const fs::path& path) {
-  Json t = Json::array();
-  for (const TrueParameter& p : r.truth)
-    t.push_back({{"effect", p.effect}, {"name", p.name}, {"value", p.value}});
-  std::ofstream(path) << Json{{"summary", r.summary()}, {"parameters", t}}.dump(1) << "\n";
-}
-
 /// Runs the CLI with `args`, stdout and stderr to files; the exit status (-1 when it did not exit).
 int run_cli(const std::vector<std::string>& args, const std::string& out, const std::string& err) {
   const char* env = std::getenv("FRICTION_CLI");
@@ -733,6 +726,14 @@ TEST(DiscoveryStudy, ToldTheEffectItFitsIt) {
   }
 }
 
+// study-output/NAME, emptied: a regression test's own record directory.
+fs::path fresh_output_directory(const std::string& name) {
+  const fs::path dir = fs::current_path() / "study-output" / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
 // A regression record: the study's record `frictional-lag+stribeck-2` at seed
 // 13684171016933042450 (envelope, 2240 Hz, lag 11.2 ms; its small loops reverse 2.2 ms apart at
 // the shortest, 28 ms at the median).  The told fit's lag grid stopped at the shortest interval
@@ -742,13 +743,10 @@ TEST(DiscoveryStudy, ToldTheEffectItFitsIt) {
 // record comes from the study's plan: a change of the plan's generator changes it.)
 TEST(DiscoveryStudy, ToldLagBeyondTheShortestIntervalBetweenReversals) {
   const std::string id = "frictional-lag+stribeck-2";
-  std::vector<RecordSpec> plan = study_plan(13684171016933042450ULL);
-  std::erase_if(plan, [&](const RecordSpec& s) { return s.id != id; });
-  ASSERT_EQ(plan.size(), 1u);
-  const fs::path dir = fs::current_path() / "study-output" / "told-regression";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  const ToldOutcome o = run_told(plan[0], dir);
+  const std::optional<RecordSpec> spec = plan_record(13684171016933042450ULL, id);
+  ASSERT_TRUE(spec) << id;
+  const fs::path dir = fresh_output_directory("told-regression");
+  const ToldOutcome o = run_told(*spec, dir);
   ASSERT_TRUE(o.error.empty()) << o.error;
   ASSERT_TRUE(o.eligible) << "twin " << o.twin_percent << " % against its floor " << o.twin_floor;
   EXPECT_LE(o.told_percent, 1.5 * o.floor) << o.told_percent << " % against the floor " << o.floor;
@@ -776,13 +774,9 @@ TEST(DiscoveryStudy, ToldLagBeyondTheShortestIntervalBetweenReversals) {
 // Every parameter of the named effects must have a standard error and lie within 3 of them.
 TEST(DiscoveryStudy, APieceBesideAnOperatorTheForceDoesNotFeelHasAStandardError) {
   const std::string id = "asymmetry-3";
-  std::vector<RecordSpec> plan = study_plan(4142990654516801226ULL);
-  std::erase_if(plan, [&](const RecordSpec& s) { return s.id != id; });
-  ASSERT_EQ(plan.size(), 1u);
-  const fs::path dir = fs::current_path() / "study-output" / "standard-error-regression";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  const Outcome o = run_record(plan[0], dir);
+  const std::optional<RecordSpec> spec = plan_record(4142990654516801226ULL, id);
+  ASSERT_TRUE(spec) << id;
+  const Outcome o = run_record(*spec, fresh_output_directory("standard-error-regression"));
   ASSERT_TRUE(o.error.empty()) << o.error;
   EXPECT_TRUE(o.exact()) << o.summary;
   ASSERT_EQ(o.parameters.size(), 1u);  // asymmetry
