@@ -67,10 +67,7 @@ std::size_t score_block_length(std::size_t n, const ResidualColour& c) {
 }
 
 BlockScores::BlockScores(std::size_t parameters, std::size_t block_length)
-    : length_(block_length),
-      score_(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(parameters))),
-      meat_(Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(parameters),
-                                  static_cast<Eigen::Index>(parameters))) {
+    : length_(block_length), score_(Eigen::VectorXd::Zero(static_cast<Eigen::Index>(parameters))) {
   FRICTION_CHECK(block_length > 0, "BlockScores: a block of 0 samples");
 }
 
@@ -79,29 +76,51 @@ void BlockScores::add(std::span<const double> row, double residual) {
                  row.size(), " values, expected ", score_.size());
   score_ += residual * Eigen::Map<const Eigen::VectorXd>(row.data(), score_.size());
   if (++in_block_ == length_) {
-    meat_.noalias() += score_ * score_.transpose();
+    done_.push_back(score_);
     score_.setZero();
     in_block_ = 0;
-    ++blocks_;
   }
 }
 
-Eigen::MatrixXd BlockScores::meat() const {
-  return in_block_ > 0 ? Eigen::MatrixXd(meat_ + score_ * score_.transpose()) : meat_;
+Eigen::MatrixXd BlockScores::meat(std::size_t merge) const {
+  FRICTION_CHECK(merge > 0, "BlockScores: blocks of 0 base blocks");
+  const auto p = score_.size();
+  Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(p, p);
+  Eigen::VectorXd s = Eigen::VectorXd::Zero(p);
+  std::size_t in = 0;
+  for (const Eigen::VectorXd& b : done_) {
+    s += b;
+    if (++in == merge) {
+      meat.noalias() += s * s.transpose();
+      s.setZero();
+      in = 0;
+    }
+  }
+  if (in_block_ > 0) s += score_, ++in;
+  if (in > 0) meat.noalias() += s * s.transpose();
+  return meat;
 }
 
-std::size_t BlockScores::blocks() const {
-  return blocks_ + (in_block_ > 0 ? 1 : 0);
+std::size_t BlockScores::blocks(std::size_t merge) const {
+  FRICTION_CHECK(merge > 0, "BlockScores: blocks of 0 base blocks");
+  const std::size_t base = done_.size() + (in_block_ > 0 ? 1 : 0);
+  return (base + merge - 1) / merge;
 }
 
 Eigen::MatrixXd block_sandwich_covariance(const Eigen::MatrixXd& gram_inverse,
                                           const BlockScores& scores, std::size_t n,
                                           std::size_t rank) {
-  const auto b = static_cast<double>(scores.blocks());
-  FRICTION_CHECK(b >= 2 && n > rank, "block_sandwich_covariance: ", scores.blocks(), " blocks, ", n,
-                 " samples, rank ", rank);
-  const double factor = b / (b - 1) * static_cast<double>(n - 1) / static_cast<double>(n - rank);
-  return factor * gram_inverse * scores.meat() * gram_inverse;
+  FRICTION_CHECK(scores.blocks() >= 2 && n > rank, "block_sandwich_covariance: ", scores.blocks(),
+                 " blocks, ", n, " samples, rank ", rank);
+  Eigen::MatrixXd out;
+  for (std::size_t merge = 1; merge == 1 || scores.blocks(merge) >= kMinimumScoreBlocks;
+       merge *= 2) {
+    const auto b = static_cast<double>(scores.blocks(merge));
+    const double factor = b / (b - 1) * static_cast<double>(n - 1) / static_cast<double>(n - rank);
+    const Eigen::MatrixXd c = factor * gram_inverse * scores.meat(merge) * gram_inverse;
+    out = merge == 1 ? c : larger_variances(out, c);
+  }
+  return out;
 }
 
 Eigen::MatrixXd larger_variances(const Eigen::MatrixXd& model, const Eigen::MatrixXd& robust) {
