@@ -611,7 +611,7 @@ void write_csv_file(const std::filesystem::path& path, std::span<const CsvColumn
 }
 
 std::vector<CsvColumn> record_columns(const Record& record) {
-  std::vector<CsvColumn> c = {{"time", record.time}, {"displacement", record.displacement}};
+  std::vector<CsvColumn> c = {{"time", record.time}, {"displacement", record.measured()}};
   if (record.has_force()) c.push_back({"force", record.force});
   if (record.has_normal()) c.push_back({"normal", record.normal});
   return c;

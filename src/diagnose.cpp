@@ -84,7 +84,7 @@ Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
       b.state.ext.reference_force,
       b.operator_drop,
       std::max(b.state.rss - floor_rss, 0.0),
-      record_derivative_windows(est.time, est.displacement),
+      record_derivative_windows(est),
       profile_scales(
           est,
           run_extended_slip(b.state.base, b.state.ext,

@@ -77,7 +77,7 @@ inline constexpr double kInf = std::numeric_limits<double>::infinity();
 // Thresholds inside [q, L] as NLR and fit_extended_slip keep them (log units), widened to hold
 // the start.
 inline void threshold_box(Box& b, const Record& r, const std::vector<double>& thresholds) {
-  const double q = displacement_resolution(r.displacement);
+  const double q = displacement_resolution(r.measured());
   const double big = std::max(largest_travel(r.displacement), q * 1.0001);
   for (double d : thresholds) {
     b.lower.push_back(std::log(std::min(q, d)));
@@ -327,8 +327,8 @@ template <class Family>
 FamilyCostFunction<Family>* make_cost(const Record& r, const Family& family,
                                       const ExtensionParameters<double>& pieces, double scale,
                                       std::size_t theta_size) {
-  auto* cost = new FamilyCostFunction<Family>(new FamilyCost<Family>{
-      &r, family, pieces, scale, record_derivative_windows(r.time, r.displacement)});
+  auto* cost = new FamilyCostFunction<Family>(
+      new FamilyCost<Family>{&r, family, pieces, scale, record_derivative_windows(r)});
   cost->AddParameterBlock(static_cast<int>(theta_size));
   cost->AddParameterBlock(static_cast<int>(family.state_count()));
   cost->SetNumResiduals(static_cast<int>(r.size()));
@@ -442,9 +442,11 @@ std::vector<double> family_run(const Record& r, const Family& family,
                                const std::vector<double>& state) {
   auto model = family.template make<double>(theta_base, ext);
   family.template set_state<double>(model, theta_base, state.data());
+  const DerivativeWindows windows = record_derivative_windows(r);
   return simulate_extended(model, std::span<const double>(r.time),
                            std::span<const double>(r.displacement),
-                           std::span<const double>(r.normal));
+                           std::span<const double>(r.normal), &windows,
+                           std::span<const double>(r.measured_displacement));
 }
 
 inline double rss_of(const Record& r, const std::vector<double>& f) {

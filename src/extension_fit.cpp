@@ -33,15 +33,17 @@ ExtendedSlipRun run_extended_slip(const MaxwellSlipParameters<double>& base,
   out.sliding.resize(n);
   out.velocity.resize(n);
   out.acceleration.resize(n);
-  for_each_extended_step(model, std::span<const double>(r.time),
-                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
-                         nullptr,
-                         [&](std::size_t k, const ExtendedMotion<double>& c, double force) {
-                           out.force[k] = force;
-                           out.sliding[k] = model.base().sliding(model.level(), asymmetry) ? 1 : 0;
-                           out.velocity[k] = c.piece_velocity;
-                           out.acceleration[k] = c.acceleration;
-                         });
+  const DerivativeWindows windows = record_derivative_windows(r);
+  for_each_extended_step(
+      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
+      std::span<const double>(r.normal), &windows,
+      [&](std::size_t k, const ExtendedMotion<double>& c, double force) {
+        out.force[k] = force;
+        out.sliding[k] = model.base().sliding(model.level(), asymmetry) ? 1 : 0;
+        out.velocity[k] = c.piece_velocity;
+        out.acceleration[k] = c.acceleration;
+      },
+      std::span<const double>(r.measured_displacement));
   return out;
 }
 
@@ -192,7 +194,8 @@ class StructuredSlipCost final : public ceres::CostFunction {
             down[k] = lift(level * (JF(1) - af));
             if (jt)
               for (std::size_t q = 0; q < e; ++q) jt[k * cols + 2 * m + q] = -f.scale * added.v[q];
-          });
+          },
+          std::span<const double>(r.measured_displacement));
       // Pass 2: operator by operator (eqs. 4-5 of maxwell_slip.hpp, one operator).
       const int own = static_cast<int>(e);
       for (std::size_t i = 0; i < m; ++i) {
@@ -238,8 +241,8 @@ ExtendedSlipJacobian extended_slip_jacobian(const Record& r,
   for (double d : base.threshold) theta.push_back(std::log(d));
   ext.for_each_parameter([&](Effect, std::string_view, const double& v) { theta.push_back(v); });
   const double rms = std::sqrt(sum_of_squares(r.force) / static_cast<double>(n));
-  StructuredSlipCost cost(new ExtendedCost{&r, m, ext, rms > 0 ? 1.0 / rms : 1.0,
-                                           record_derivative_windows(r.time, r.displacement)});
+  StructuredSlipCost cost(
+      new ExtendedCost{&r, m, ext, rms > 0 ? 1.0 / rms : 1.0, record_derivative_windows(r)});
   ExtendedSlipJacobian out;
   out.structured = !whole_model && cost.structured();
   out.residual.resize(static_cast<Eigen::Index>(n));
@@ -283,8 +286,8 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   for (double& v : rho) v = std::clamp(v, -1.0, 1.0);
 
   double rms = std::sqrt(sum_of_squares(r.force) / static_cast<double>(r.size()));
-  auto* cost = new StructuredSlipCost(new ExtendedCost{
-      &r, m, ext0, rms > 0 ? 1.0 / rms : 1.0, record_derivative_windows(r.time, r.displacement)});
+  auto* cost = new StructuredSlipCost(
+      new ExtendedCost{&r, m, ext0, rms > 0 ? 1.0 / rms : 1.0, record_derivative_windows(r)});
   ceres::Problem problem;
   problem.AddResidualBlock(new detail::CompressedCost(cost), nullptr, theta.data(), rho.data());
   for (std::size_t i = 0; i < m; ++i) {
@@ -310,7 +313,7 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   // Thresholds inside [q, L] as NLR keeps them (nlr.hpp): an operator beyond the travel with a
   // large initial deflection would otherwise act as a free offset.
   {
-    const double q = displacement_resolution(r.displacement);
+    const double q = displacement_resolution(r.measured());
     const double big = std::max(largest_travel(r.displacement), q * 1.0001);
     for (std::size_t i = 0; i < m; ++i) {
       double& v = theta[m + i];
@@ -415,11 +418,14 @@ double first_level(const MaxwellSlipParameters<double>& base,
     return 1.0;
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(base), ext, 2);
   double level = 1.0;
-  for_each_extended_step(model, std::span<const double>(r.time),
-                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
-                         windows, [&](std::size_t k, const ExtendedMotion<double>&, double) {
-                           if (k == 0) level = model.level();
-                         });
+  const DerivativeWindows own = windows ? *windows : record_derivative_windows(r);
+  for_each_extended_step(
+      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
+      std::span<const double>(r.normal), &own,
+      [&](std::size_t k, const ExtendedMotion<double>&, double) {
+        if (k == 0) level = model.level();
+      },
+      std::span<const double>(r.measured_displacement));
   return level;
 }
 
@@ -452,12 +458,12 @@ std::vector<double> plain_relative_state(const MaxwellSlipParameters<double>& ba
   // slip limits (a L0 F0, L0 the level the record starts with) removed.  Left in, an offset-like
   // part biases every operator's estimated deflection (an asymmetric model scored 2.7 % worse than
   // the offset model it equals, from its initial state alone).
-  const DerivativeWindows windows = record_derivative_windows(r.time, r.displacement);
+  const DerivativeWindows windows = record_derivative_windows(r);
   const double level = first_level(base, ext, r, &windows);
   std::vector<double> f = r.force;
   if (ext.viscous || ext.offset || ext.inertia || ext.asymmetry) {
     std::vector<double> v(r.size()), a(r.size());
-    apply_local_derivatives<double>(r.time, r.displacement, windows, v, a);
+    apply_local_derivatives<double>(r.time, r.measured(), windows, v, a);
     const double f0 = ext.reference_force > 0 ? ext.reference_force : base.sliding_force();
     for (std::size_t k = 0; k < r.size(); ++k) {
       if (ext.viscous) f[k] -= ext.viscous->viscous * v[k];

@@ -26,8 +26,8 @@ RecordSignals record_signals(const Record& r) {
   RecordSignals s;
   s.v.assign(n, 0.0);
   s.a.assign(n, 0.0);
-  apply_local_derivatives<double>(r.time, r.displacement,
-                                  record_derivative_windows(r.time, r.displacement), s.v, s.a);
+  // Of the displacement as measured, like the pieces' (extensions.hpp, for_each_extended_step).
+  apply_local_derivatives<double>(r.time, r.measured(), record_derivative_windows(r), s.v, s.a);
   return s;
 }
 

@@ -27,7 +27,7 @@ struct ProfileContext {
 
 ProfileContext profile_context(const Record& r, const ExtendedSlipFit& cur) {
   return {
-      record_derivative_windows(r.time, r.displacement),
+      record_derivative_windows(r),
       profile_scales(r,
                      run_extended_slip(cur.base, cur.ext,
                                        deflections_from_relative(cur.base, cur.rho, cur.ext), r),
@@ -159,18 +159,20 @@ PiecesAlongRun pieces_along_run(const Record& r, const ExtendedSlipFit& cur) {
   model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho, cur.ext)),
                      model.asymmetry());
   PiecesAlongRun run{std::vector<double>(r.size()), std::vector<double>(r.size())};
-  for_each_extended_step(model, std::span<const double>(r.time),
-                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
-                         nullptr, [&](std::size_t k, const ExtendedMotion<double>& c, double) {
-                           const double vl =
-                               cur.ext.frictional_lag ? model.lagged_velocity() : c.piece_velocity;
-                           double added = 0;
-                           if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
-                           if (cur.ext.offset) added += cur.ext.offset->offset;
-                           if (cur.ext.inertia) added += cur.ext.inertia->mass * c.acceleration;
-                           run.added[k] = added;
-                           run.level[k] = model.level();
-                         });
+  const DerivativeWindows windows = record_derivative_windows(r);
+  for_each_extended_step(
+      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
+      std::span<const double>(r.normal), &windows,
+      [&](std::size_t k, const ExtendedMotion<double>& c, double) {
+        const double vl = cur.ext.frictional_lag ? model.lagged_velocity() : c.piece_velocity;
+        double added = 0;
+        if (cur.ext.viscous) added += cur.ext.viscous->viscous * vl;
+        if (cur.ext.offset) added += cur.ext.offset->offset;
+        if (cur.ext.inertia) added += cur.ext.inertia->mass * c.acceleration;
+        run.added[k] = added;
+        run.level[k] = model.level();
+      },
+      std::span<const double>(r.measured_displacement));
   return run;
 }
 
@@ -227,15 +229,16 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
   if (o.max_operators > 0) n.max_operators = o.max_operators;
   n.global_stage = o.global_stage;
   n.covariance = false;
+  n.displacement_resolution = record_resolution(r);
   // A delay shifts the motion the operators see (extensions.hpp): NLR runs on the displacement
   // at t - D.  On the record as recorded the operators cannot follow the shifted reversals, and
   // BIC stopped at 6 operators where the system's twin without the delay took 8 (2.05 times the
   // floor on a discovery-study record).
   std::vector<double> x;
-  delayed_displacement_into(
-      std::span<const double>(r.time), std::span<const double>(r.displacement),
-      cur.ext.delay ? cur.ext.delay->delay : 0.0, x,
-      cur.ext.delay ? delay_edge_length(record_derivative_windows(r.time, r.displacement)) : 0);
+  delayed_displacement_into(std::span<const double>(r.time),
+                            std::span<const double>(r.displacement),
+                            cur.ext.delay ? cur.ext.delay->delay : 0.0, x,
+                            cur.ext.delay ? delay_edge_length(record_derivative_windows(r)) : 0);
   const PiecesAlongRun run = pieces_along_run(r, cur);
   std::optional<ExtendedSlipFit> best;
   auto consider = [&](const NlrResult& nr, std::vector<double> rho, bool level) {

@@ -34,8 +34,8 @@ struct Columns {
 
 void fill_columns(const Record& r, const std::vector<double>& thresholds,
                   const std::vector<double>& rho, double rho_level,
-                  const ExtensionParameters<double>& ext,
-                  const DerivativeWindows& windows, Columns& c) {
+                  const ExtensionParameters<double>& ext, const DerivativeWindows& windows,
+                  Columns& c) {
   const std::size_t m = thresholds.size(), n = r.size();
   c.viscous = ext.viscous.has_value();
   c.offset = ext.offset.has_value();
@@ -55,19 +55,19 @@ void fill_columns(const Record& r, const std::vector<double>& thresholds,
   // operators (extensions.hpp, Initial state).
   model.set_initial_state_level(rho_level);
   const bool lag = ext.frictional_lag.has_value();
-  for_each_extended_step(model, std::span<const double>(r.time),
-                         std::span<const double>(r.displacement), std::span<const double>(r.normal),
-                         &windows, [&](std::size_t k, const ExtendedMotion<double>& ctx, double) {
-                           const auto row = static_cast<Eigen::Index>(k);
-                           const auto d = model.base().deflections();
-                           for (std::size_t i = 0; i < m; ++i)
-                             c.a(row, static_cast<Eigen::Index>(i)) = d[i];
-                           Eigen::Index j = static_cast<Eigen::Index>(m);
-                           if (c.viscous)
-                             c.a(row, j++) = lag ? model.lagged_velocity() : ctx.piece_velocity;
-                           if (c.offset) c.a(row, j++) = 1.0;
-                           if (c.inertia) c.a(row, j++) = ctx.acceleration;
-                         });
+  for_each_extended_step(
+      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
+      std::span<const double>(r.normal), &windows,
+      [&](std::size_t k, const ExtendedMotion<double>& ctx, double) {
+        const auto row = static_cast<Eigen::Index>(k);
+        const auto d = model.base().deflections();
+        for (std::size_t i = 0; i < m; ++i) c.a(row, static_cast<Eigen::Index>(i)) = d[i];
+        Eigen::Index j = static_cast<Eigen::Index>(m);
+        if (c.viscous) c.a(row, j++) = lag ? model.lagged_velocity() : ctx.piece_velocity;
+        if (c.offset) c.a(row, j++) = 1.0;
+        if (c.inertia) c.a(row, j++) = ctx.acceleration;
+      },
+      std::span<const double>(r.measured_displacement));
   if (c.offset) {
     const Eigen::Index j = static_cast<Eigen::Index>(m + c.viscous);
     c.lo[j] = -std::numeric_limits<double>::infinity();
@@ -87,13 +87,10 @@ void fill_columns(const Record& r, const std::vector<double>& thresholds,
 // regression of the base's residual on those two signals, and the three best local maxima of
 // the explained sum of squares, with their amplitude and phase, are evaluated as starts beside
 // the coarse grid.
-std::vector<PositionExtension<double>> position_scan(const Record& r,
-                                                     const MaxwellSlipParameters<double>& base,
-                                                     const std::vector<double>& rho,
-                                                     double rho_level,
-                                                     const ExtensionParameters<double>& ext,
-                                                     const DerivativeWindows& windows,
-                                                     const ProfileScales& s) {
+std::vector<PositionExtension<double>> position_scan(
+    const Record& r, const MaxwellSlipParameters<double>& base, const std::vector<double>& rho,
+    double rho_level, const ExtensionParameters<double>& ext, const DerivativeWindows& windows,
+    const ProfileScales& s) {
   const double f0 = ext.reference_force, travel = s.travel;
   const double lo = 10 * s.sample_travel;
   if (!(f0 > 0) || !(lo > 0) || !(travel > lo)) return {};
@@ -201,7 +198,7 @@ ProfileScales profile_scales(const Record& r, const ExtendedSlipRun& run, double
   const auto [lo, hi] = std::minmax_element(r.displacement.begin(), r.displacement.end());
   s.travel = *hi - *lo;
   // Reversals with a hysteresis of three resolution steps (identification.hpp's detector).
-  const double h = std::max(3 * displacement_resolution(r.displacement), 1e-4 * s.travel);
+  const double h = std::max(3 * displacement_resolution(r.measured()), 1e-4 * s.travel);
   const std::vector<std::size_t> turns = turning_points(r.displacement, h);
   // Between extremes only: the detector also returns the first and the last sample.
   s.reversal_interval = s.duration;

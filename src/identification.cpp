@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "friction/error.hpp"
+#include "friction/record.hpp"
 
 namespace friction {
 
@@ -35,6 +36,12 @@ double displacement_resolution(std::span<const double> x) {
   }
   if (on_grid >= steps.size() - steps.size() / 100) return q;
   return std::max(floor, steps[steps.size() / 100]);
+}
+
+double record_resolution(const Record& r) {
+  const std::vector<double>& x = r.measured_displacement;
+  if (x.size() < 2 || !(largest_travel(x) > 0.0)) return 0.0;
+  return displacement_resolution(x);
 }
 
 std::vector<std::size_t> turning_points(std::span<const double> x, double h) {

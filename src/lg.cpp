@@ -164,9 +164,10 @@ struct Segment {
   bool slides = false;
 };
 
-std::vector<Segment> segments_of(std::span<const double> x, std::span<const double> force) {
+std::vector<Segment> segments_of(std::span<const double> x, std::span<const double> force,
+                                 double resolution) {
   const double range = 2.0 * largest_travel(x);
-  const double h = std::max(3.0 * displacement_resolution(x), 1e-4 * range);
+  const double h = std::max(3.0 * resolution, 1e-4 * range);
   const auto turns = turning_points(x, h);
   std::vector<Segment> segs;
   for (std::size_t s = 0; s + 1 < turns.size(); ++s) {
@@ -443,11 +444,12 @@ std::string pair_name(std::size_t a, std::size_t b) {
 // ---------------------------------------------------------------------------------------------
 
 LgStart lugre_start(std::span<const double> time, std::span<const double> x,
-                    std::span<const double> force, StribeckShape shape) {
+                    std::span<const double> force, StribeckShape shape, double resolution) {
   check_record(time, x, force, "lugre_start");
+  if (!(resolution > 0)) resolution = displacement_resolution(x);
   const std::size_t n = x.size();
   const auto motions = motions_of(time, x);
-  const auto segs = segments_of(x, force);
+  const auto segs = segments_of(x, force, resolution);
   LgStart st;
   st.segments = segs.size();
   st.presliding.assign(n, false);
@@ -498,7 +500,7 @@ LgStart lugre_start(std::span<const double> time, std::span<const double> x,
   // q / (sqrt(6) Ts) of quantisation and the sqrt(2) q / Ts of white noise of deviation q).
   std::vector<double> dt(n - 1);
   for (std::size_t k = 1; k < n; ++k) dt[k - 1] = time[k] - time[k - 1];
-  st.velocity_noise = displacement_resolution(x) / statistics::upper_median(dt);
+  st.velocity_noise = resolution / statistics::upper_median(dt);
 
   auto& p = st.parameters;
   p.shape = shape;
@@ -646,7 +648,7 @@ LgStart lugre_start(std::span<const double> time, std::span<const double> x,
       } else {
         // No resolved presliding: the exponential approach covers 95 % of 2 Fs in 3 s(0).
         const double travel = travel_at_force_fraction(x, force, 0.95);
-        p.stiffness = 3.0 * p.static_force / std::max(travel, displacement_resolution(x));
+        p.stiffness = 3.0 * p.static_force / std::max(travel, resolution);
       }
     }
   }
@@ -829,9 +831,11 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
   const std::size_t n = x.size();
   const double nd = static_cast<double>(n);
 
-  result.start = lugre_start(time, x, force, o.shape);
+  const double resolution =
+      o.displacement_resolution > 0 ? o.displacement_resolution : displacement_resolution(x);
+  result.start = lugre_start(time, x, force, o.shape, resolution);
   const LgStart& st = result.start;
-  rep.displacement_resolution = displacement_resolution(x);
+  rep.displacement_resolution = resolution;
   rep.largest_travel = largest_travel(x);
   rep.presliding_travel = travel_at_force_fraction(x, force, 0.95);
 

@@ -126,7 +126,7 @@ namespace {
 // F - m·a, as a start for pieces that model the inertia; without it the result (or the error)
 // says what dominates.
 NlrResult maxwell_slip_base(const Record& r, const NlrOptions& n, const MethodOptions& o) {
-  const SlidingForceRegression reg = sliding_force_regression(r.time, r.displacement, r.force);
+  const SlidingForceRegression reg = sliding_force_regression(r.time, r.measured(), r.force);
   const double inertial_rms =
       reg.acceleration.empty()
           ? 0.0
@@ -173,6 +173,7 @@ IdentifiedModel identify_base(const std::string& type, const Record& r, const Me
     n.operators = o.operators;
     n.global_stage = o.global_stage;
     n.threads = o.threads;
+    n.displacement_resolution = record_resolution(r);
     NlrResult res = maxwell_slip_base(r, n, o);
     Json init = values_json(res.report.initial_deflections, "m");
     return {AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(res.parameters), none)),
@@ -187,6 +188,7 @@ IdentifiedModel identify_base(const std::string& type, const Record& r, const Me
     d.nlr.global_stage = o.global_stage;
     d.nlr_report = o.maxwell_slip_report;
     d.threads = o.threads;
+    d.nlr.displacement_resolution = record_resolution(r);
     DnlrxResult res = identify_dnlrx(r.time, r.displacement, r.force, d);
     Json init = values_json(res.report.initial_deflections, "m");
     return {AnyModel(Extended<Dnlrx<double>>(Dnlrx<double>(res.parameters), none)),
@@ -196,6 +198,7 @@ IdentifiedModel identify_base(const std::string& type, const Record& r, const Me
     LgOptions l;
     l.global_stage = o.global_stage;
     l.seed = o.seed;
+    l.displacement_resolution = record_resolution(r);
     LgResult res = identify_lugre(r.time, r.displacement, r.force, l);
     Json init = values_json({res.initial_state}, "m");
     return {AnyModel(Extended<LuGre<double>>(LuGre<double>(res.parameters), none)),

@@ -159,8 +159,7 @@ void compressed_jacobian(const Data& d, std::span<const double> s, std::span<con
     // squares and the Projector use (compress_by_gram).
     Eigen::VectorXd sc, unused_b;
     Eigen::LLT<Eigen::MatrixXd> llt;
-    blocked =
-        detail::compress_by_gram(g, Eigen::VectorXd::Zero(nf), llt, sc, unused_r, unused_b);
+    blocked = detail::compress_by_gram(g, Eigen::VectorXd::Zero(nf), llt, sc, unused_r, unused_b);
     if (blocked) {
       ws.cross_t.noalias() = traj.delta.transpose() * traj.d_threshold;
       ws.cross_i.noalias() = traj.delta.transpose() * traj.d_initial;
@@ -484,7 +483,7 @@ Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, 
     const double kmax = std::max(v.k.maxCoeff(), 1e-300);
     for (int i = 0; i < m; ++i) logk.push_back(std::log(std::max(v.k(i), 1e-6 * kmax)));
     problem->AddResidualBlock(new JointCost(d, m, JointCost::StickBreaking), nullptr, logk.data(),
-                             s.data(), rho.data());
+                              s.data(), rho.data());
   }
   for (int i = 0; i < m; ++i) {
     problem->SetParameterLowerBound(s.data(), i, 0.0);
@@ -507,8 +506,9 @@ Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, 
   fit.message = summary.message;
   if (hopeless.converged()) {
     fit.converged = true;
-    fit.message = "converged: at its pace its remaining iterations would lower the RSS by less "
-                  "than the noise variance";
+    fit.message =
+        "converged: at its pace its remaining iterations would lower the RSS by less "
+        "than the noise variance";
   }
   if (hopeless.stopped())
     fit.message = target <= d.floor_percent
@@ -1117,7 +1117,7 @@ NlrResult identify(std::span<const double> time, std::span<const double> x,
   NlrResult result;
   IdentificationReport& rep = result.report;
   Scales sc;
-  sc.q = displacement_resolution(x);
+  sc.q = o.displacement_resolution > 0 ? o.displacement_resolution : displacement_resolution(x);
   sc.travel = largest_travel(x);
   FRICTION_CHECK(sc.travel > 2.0 * sc.q, "identify_maxwell_slip: the displacement hardly moves");
   sc.presliding = std::clamp(travel_at_force_fraction(x, force, 0.95), 2.0 * sc.q, 2.0 * sc.travel);
@@ -1214,8 +1214,8 @@ NlrResult identify(std::span<const double> time, std::span<const double> x,
       for (std::size_t i = 0; i < m; ++i)
         filter(static_cast<Eigen::Index>(i), 0) = p.stiffness[i] / d.scale;
       rep.initial_deflections = estimate_initial_deflections(
-          x, std::span<const double>(d.y.data(), static_cast<std::size_t>(d.y.size())),
-          p.threshold, filter, guess);
+          x, std::span<const double>(d.y.data(), static_cast<std::size_t>(d.y.size())), p.threshold,
+          filter, guess);
     } else {
       rep.initial_deflections = guess;
     }
@@ -1267,9 +1267,9 @@ NlrResult identify(std::span<const double> time, std::span<const double> x,
         const double di = p.threshold[static_cast<std::size_t>(i)];
         const double ri = init[static_cast<std::size_t>(i)] / di;
         block.col(i).head(rows) = ki * tr.delta.col(i).segment(t0, rows);
-        block.col(mi + i).head(rows) = ki * di *
-                                       (tr.d_threshold.col(i).segment(t0, rows) +
-                                        ri * tr.d_initial.col(i).segment(t0, rows));
+        block.col(mi + i).head(rows) =
+            ki * di *
+            (tr.d_threshold.col(i).segment(t0, rows) + ri * tr.d_initial.col(i).segment(t0, rows));
         block.col(2 * mi + i).head(rows) = ki * di * tr.d_initial.col(i).segment(t0, rows);
       }
       compressor.add(block.topRows(rows));
@@ -1337,8 +1337,7 @@ namespace detail {
 NlrResult identify_maxwell_slip_under_limits(std::span<const double> time,
                                              std::span<const double> x,
                                              std::span<const double> force,
-                                             const NlrOptions& options,
-                                             const SlipLimits& limits) {
+                                             const NlrOptions& options, const SlipLimits& limits) {
   check_slip_limits(limits, x.size());
   return identify(time, x, force, options, &limits);
 }

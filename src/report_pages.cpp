@@ -127,7 +127,8 @@ RecordView view_record(const Record& record, std::string role) {
   v.acceleration.assign(n, 0.0);
   double v_noise = 0;
   if (n >= 16) {
-    const SampleDerivatives d = sample_derivatives(t, x);
+    // Of the displacement as measured, as every fit's pieces take them.
+    const SampleDerivatives d = sample_derivatives(t, record.measured());
     v.velocity = d.velocity;
     v.acceleration = d.acceleration;
     v_noise = d.windows.velocity_rms_error;
@@ -147,7 +148,7 @@ RecordView view_record(const Record& record, std::string role) {
     return v;
   }
   v.presliding_travel = travel_at_force_fraction(x, record.force, 0.95);
-  const double h = std::max(3.0 * displacement_resolution(x), 1e-4 * range);
+  const double h = std::max(3.0 * displacement_resolution(record.measured()), 1e-4 * range);
   const std::vector<std::size_t> turns = turning_points(x, h);
 
   // Sliding: beyond the presliding travel since the last reversal, moving away from it.

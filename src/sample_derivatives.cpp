@@ -151,6 +151,7 @@ constexpr std::size_t kDecisionBins = 4;
 struct FilterRows {
   double odd[2][2] = {{0, 0}, {0, 0}};
   double even[2][3] = {{0, 0, 0}, {0, 0, 0}};
+  double value[2][3] = {{0, 0, 0}, {0, 0, 0}};  // the fitted value at the centre
 };
 
 std::vector<FilterRows> filter_rows(std::size_t m_max) {
@@ -167,6 +168,8 @@ std::vector<FilterRows> filter_rows(std::size_t m_max) {
     r.odd[0][0] = 1 / moment[2];
     r.even[0][0] = -moment[2] / (moment[0] * moment[4] - moment[2] * moment[2]);
     r.even[0][1] = moment[0] / (moment[0] * moment[4] - moment[2] * moment[2]);
+    r.value[0][0] = moment[4] / (moment[0] * moment[4] - moment[2] * moment[2]);
+    r.value[0][1] = -moment[2] / (moment[0] * moment[4] - moment[2] * moment[2]);
     if (m >= 2) {
       Eigen::Matrix2d go;
       go << moment[2], moment[4], moment[4], moment[6];
@@ -175,8 +178,10 @@ std::vector<FilterRows> filter_rows(std::size_t m_max) {
       Eigen::Matrix3d ge;
       ge << moment[0], moment[2], moment[4], moment[2], moment[4], moment[6], moment[4], moment[6],
           moment[8];
-      const Eigen::Vector3d e = ge.inverse().col(1);
+      const Eigen::Matrix3d gi = ge.inverse();
+      const Eigen::Vector3d e = gi.col(1), c = gi.col(0);
       r.even[1][0] = e[0], r.even[1][1] = e[1], r.even[1][2] = e[2];
+      r.value[1][0] = c[0], r.value[1][1] = c[1], r.value[1][2] = c[2];
     }
   }
   return rows;
@@ -204,8 +209,8 @@ FilterLoss minimise_errors(const Spectrum& p, const std::vector<double>& noise, 
   const double lf = static_cast<double>(length);
   const std::size_t m_max = std::max<std::size_t>(1, std::min(length / 4, (n - 1) / 2));
   // [degree / 2 - 1][m] for degrees 2 and 4: sum Re(H D*) S and sum |H|^2 P.
-  std::vector<double> cross_v[2], cross_a[2], pass_v[2], pass_a[2];
-  for (auto* e : {cross_v, cross_a, pass_v, pass_a})
+  std::vector<double> cross_v[2], cross_a[2], pass_v[2], pass_a[2], cross_x[2], pass_x[2];
+  for (auto* e : {cross_v, cross_a, pass_v, pass_a, cross_x, pass_x})
     for (int d = 0; d < 2; ++d) e[d].assign(m_max + 1, 0.0);
   double ideal_v = 0, ideal_a = 0;  // sum |D|^2 S
   // Local averages over +-kDecisionBins bins decide where the signal is, and the bin keeps its
@@ -250,19 +255,22 @@ FilterLoss minimise_errors(const Spectrum& p, const std::vector<double>& noise, 
       const FilterRows& r = rows[m];
       for (int d = 0; d < 2; ++d) {
         if (d == 1 && m < 2) continue;  // a quartic needs five samples
-        double hv = 0, ha = 0;          // H_v = i hv, H_a = ha
+        double hv = 0, ha = 0, hx = 0;  // H_v = i hv, H_a = ha, H_x = hx
         for (int q = 0; q <= d; ++q) hv += r.odd[d][q] * sin_sums[q];
         for (int q = 0; q <= d + 1; ++q) ha += r.even[d][q] * cos_sums[q];
+        for (int q = 0; q <= d + 1; ++q) hx += r.value[d][q] * cos_sums[q];
         hv /= ts * i;
         ha *= 2 / (ts * ts * i2);
         cross_v[d][m] += weight * hv * d_v * signal;
         cross_a[d][m] += weight * ha * d_a * signal;
         pass_v[d][m] += weight * hv * hv * total;
         pass_a[d][m] += weight * ha * ha * total;
+        cross_x[d][m] += weight * hx * signal;
+        pass_x[d][m] += weight * hx * hx * total;
       }
     }
   }
-  double best_v = INFINITY, best_a = INFINITY;
+  double best_v = INFINITY, best_a = INFINITY, best_x = INFINITY;
   for (int d = 0; d < 2; ++d)
     for (std::size_t m = d == 1 ? 2 : 1; m <= m_max; ++m) {
       // The mean square errors less sum |D|^2 S.
@@ -277,6 +285,12 @@ FilterLoss minimise_errors(const Spectrum& p, const std::vector<double>& noise, 
         best_a = e_a;
         w.acceleration_half_width = m;
         w.acceleration_degree = 2 + 2 * static_cast<std::size_t>(d);
+      }
+      const double e_x = pass_x[d][m] - 2 * cross_x[d][m];
+      if (e_x < best_x) {
+        best_x = e_x;
+        w.displacement_half_width = m;
+        w.displacement_degree = 2 + 2 * static_cast<std::size_t>(d);
       }
     }
   w.velocity_rms_error = std::sqrt(std::max(best_v + ideal_v, 0.0));
@@ -307,6 +321,11 @@ DerivativeWindows windows_by_the_rule(std::span<const double> time, std::span<co
   std::vector<double> noise(p.p.size(), white);
   FilterLoss lost = minimise_errors(p, noise, ts, n, w);
   w.displacement_noise = std::sqrt(white);
+  // The displacement the models see: as measured unless an encoder's staircase is removed below
+  // (the top band of an exact record holds the broadband power of its reversals' corners, which
+  // the derivatives may treat as noise but a presliding curve must keep).
+  w.displacement_half_width = 1;
+  w.displacement_degree = 2;
 
   // An encoder: its quantisation error is white only where the motion crosses many steps per
   // sample; near reversals and on slow strokes it is a staircase whose power sits at low and
@@ -342,6 +361,12 @@ DerivativeWindows windows_by_the_rule(std::span<const double> time, std::span<co
     for (std::size_t j = 0; j < noise.size(); ++j) noise[j] = e.p[j] + excess;
     lost = minimise_errors(p, noise, ts, n, w);
     w.displacement_noise = std::sqrt(variance + excess);
+    // The value filter against the quantisation error alone: what it is for is the staircase,
+    // and an excess in the top band may be the record's own corners (above).
+    DerivativeWindows staircase = w;
+    minimise_errors(p, e.p, ts, n, staircase);
+    w.displacement_half_width = staircase.displacement_half_width;
+    w.displacement_degree = staircase.displacement_degree;
   }
   // The regression factors sum(s s_hat) / sum(s_hat^2) = 1 - (what the filter loses) /
   // sum(s_hat^2): a term fitted by least squares on f s_hat is then the term fitted on s, to first

@@ -362,9 +362,28 @@ const Conditioning& condition_record(Record& record, const ConditioningOptions& 
     c.force_noise = estimate_force_noise(record.force);
   }
 
+  // Conditioning twice (a record conditioned, then sliced and conditioned again) starts from the
+  // measured displacement, not from its estimate.
+  if (!record.measured_displacement.empty()) {
+    record.displacement = std::move(record.measured_displacement);
+    record.measured_displacement.clear();
+  }
   const Resolution res = estimate_displacement_resolution(record.displacement);
   c.displacement_resolution = res.value;
   c.displacement_quantised = res.quantum.has_value();
+  // The displacement the models see (sample_derivatives.hpp): the local polynomial's value when
+  // the rule's window is longer than three samples (a quadratic through three passes them).
+  if (n >= 16) {
+    const DerivativeWindows w = choose_derivative_windows(record.time, record.displacement);
+    c.displacement_half_width = w.displacement_half_width;
+    c.displacement_degree = w.displacement_degree;
+    if (w.displacement_half_width > 1 || w.displacement_degree != 2) {
+      std::vector<double> estimate(n);
+      apply_local_displacement<double>(record.time, record.displacement, w, estimate);
+      record.measured_displacement = std::move(record.displacement);
+      record.displacement = std::move(estimate);
+    }
+  }
 
   if (c.irregular) c.warnings.push_back(describe_sampling(sampling, n - 1));
   record.conditioning = std::move(c);

@@ -85,7 +85,7 @@ TEST(CliGenerate, EncoderResolutionQuantisesTheDisplacement) {
   const std::string rec = dir.file("q.csv");
   ASSERT_EQ(run_cli("generate" + kShort + "--resolution 1e-7 --out " + rec).status, 0);
   const auto r = friction::read_record(rec);
-  for (double x : r.displacement) ASSERT_NEAR(x / 1e-7, std::round(x / 1e-7), 1e-6);
+  for (double x : r.measured()) ASSERT_NEAR(x / 1e-7, std::round(x / 1e-7), 1e-6);
 }
 
 TEST(CliGenerate, EffectsChangeTheForceAsTheirFormulaSays) {

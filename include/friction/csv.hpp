@@ -80,7 +80,9 @@ struct ReadOptions {
   double period_tolerance = kDefaultPeriodTolerance;  ///< relative, for the irregular-sampling rule
 };
 
-/// Reads and conditions the CSV file at `path`; messages name the file as given.
+/// Reads and conditions the CSV file at `path`; messages name the file as given.  Conditioning
+/// may replace an encoder's staircase by the estimate the models see (Record::displacement), the
+/// values as read then being Record::measured().
 /// Throws DataError (also when the file cannot be opened).
 Record read_record(const std::filesystem::path& path, const ReadOptions& options = {});
 
@@ -106,7 +108,8 @@ void write_csv(std::ostream& out, std::span<const CsvColumn> columns);
 /// write_csv to `path`, atomically (throws FileError on I/O failure).
 void write_csv_file(const std::filesystem::path& path, std::span<const CsvColumn> columns);
 
-/// The record's signals as columns time,displacement[,force][,normal] (SI, model convention).
+/// The record's signals as columns time,displacement[,force][,normal] (SI, model convention); the
+/// displacement as measured (Record::measured), not the estimate the models see.
 std::vector<CsvColumn> record_columns(const Record& record);
 
 /// Writes the record as CSV; reading it back gives the same numbers exactly.

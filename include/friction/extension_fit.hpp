@@ -59,7 +59,8 @@ void extended_residuals(Model& model, const Record& r, double scale, T* residual
   f.resize(n);
   for (std::size_t k = 0; k < n; ++k) x[k] = T(r.displacement[k]);
   simulate_extended(model, std::span<const double>(r.time), std::span<const T>(x),
-                    std::span<const double>(r.normal), std::span<T>(f), &windows);
+                    std::span<const double>(r.normal), std::span<T>(f), &windows,
+                    std::span<const double>(r.measured_displacement));
   for (std::size_t k = 0; k < n; ++k) residual[k] = (T(r.force[k]) - f[k]) * scale;
 }
 

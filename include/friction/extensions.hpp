@@ -109,6 +109,7 @@
 #include "friction/error.hpp"
 #include "friction/model_concept.hpp"
 #include "friction/motion.hpp"
+#include "friction/record.hpp"
 #include "friction/sample_derivatives.hpp"
 #include "friction/scalar.hpp"
 #include "friction/stribeck.hpp"
@@ -536,7 +537,7 @@ class Extended {
     level_ = level;
     if (first_step_) {
       // The initial state is given at level 1 (header: Initial state).
-      if constexpr (requires(Base& b, const T& l) { b.scale_state(l); })
+      if constexpr (requires(Base & b, const T& l) { b.scale_state(l); })
         base_.scale_state(fixed_initial_level_ ? initial_level_ : level);
       first_step_ = false;
     }
@@ -598,7 +599,7 @@ class Extended {
   bool lag_started_ = false;
   T previous_piece_velocity_{0};
   T level_{1};
-  bool first_step_ = true;  // the next step scales the base's state by its level
+  bool first_step_ = true;            // the next step scales the base's state by its level
   bool fixed_initial_level_ = false;  // ... or by initial_level_
   T initial_level_{1};
   // step(Motion) accumulators.
@@ -754,6 +755,12 @@ inline DerivativeWindows record_derivative_windows(std::span<const double> time,
   return w;
 }
 
+/// The derivative windows of a record: chosen on the displacement as measured, and applied to the
+/// one the models see (sample_derivatives.hpp, "The displacement the models see").
+inline DerivativeWindows record_derivative_windows(const Record& r) {
+  return record_derivative_windows(r.time, r.measured());
+}
+
 /// The samples a delay's extrapolation fits at a record's edge: the velocity window, 2m + 1.
 inline std::size_t delay_edge_length(const DerivativeWindows& w) {
   return 2 * w.velocity_half_width + 1;
@@ -762,11 +769,16 @@ inline std::size_t delay_edge_length(const DerivativeWindows& w) {
 /// Steps an extended model over a record, calling visit(k, context, force) after every sample
 /// (the model's state, e.g. its base's deflections and its lagged velocity, is that of sample k
 /// then).  What simulate_extended does; the profiles of extension_profile.cpp read the operators'
-/// deflections through it, so that they see exactly the model they start.
+/// deflections through it, so that they see exactly the model they start.  `measured`: the
+/// displacement as measured when `x` is its estimate (Record::measured_displacement; empty
+/// otherwise): the pieces' velocity and acceleration come from it, with the windows chosen on it,
+/// and the model's displacement from `x` (sample_derivatives.hpp, "The displacement the models
+/// see").
 template <class Base, typename T, class Visit>
 void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
                             std::span<const T> x, std::span<const double> normal,
-                            const DerivativeWindows* windows, Visit&& visit) {
+                            const DerivativeWindows* windows, Visit&& visit,
+                            std::span<const double> measured = {}) {
   const std::size_t n = x.size();
   FRICTION_CHECK(time.size() == n, "simulate_extended: time and displacement differ in length");
   FRICTION_CHECK(normal.empty() || normal.size() == n,
@@ -778,18 +790,28 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
   // Buffers reused per thread and scalar type: a fit simulates the same record hundreds of times,
   // and three fresh vectors of Jets per run (4 MB at 10k samples) cost a sixth of a diagnosis in
   // page faults.  The visitors never step another model on the same thread.
-  thread_local std::vector<T> xs, v, a;
+  thread_local std::vector<T> xs, v, a, measured_t, ms;
+  FRICTION_CHECK(measured.empty() || measured.size() == n,
+                 "simulate_extended: the measured displacement must be empty or as long as x");
   // The pieces' velocity and acceleration at the sample instants (header: Differentiators), with
   // the record's windows; the base's interval velocity dx/dt.
   DerivativeWindows own;
   if (!windows) {
     std::vector<double> xd(n);
-    for (std::size_t k = 0; k < n; ++k) xd[k] = value_of(x[k]);
+    for (std::size_t k = 0; k < n; ++k) xd[k] = measured.empty() ? value_of(x[k]) : measured[k];
     own = record_derivative_windows(time, xd);
     windows = &own;
   }
-  delayed_displacement_into(time, x, p.delay ? p.delay->delay : T(0), xs,
-                            delay_edge_length(*windows));
+  const T delay = p.delay ? p.delay->delay : T(0);
+  delayed_displacement_into(time, x, delay, xs, delay_edge_length(*windows));
+  const std::vector<T>* ds = &xs;  // what the derivatives are taken of
+  if (!measured.empty()) {
+    measured_t.resize(n);
+    for (std::size_t k = 0; k < n; ++k) measured_t[k] = T(measured[k]);
+    delayed_displacement_into(time, std::span<const T>(measured_t), delay, ms,
+                              delay_edge_length(*windows));
+    ds = &ms;
+  }
   v.assign(n, T(0));
   a.assign(n, T(0));
   // A displacement without derivative parts (every fit but a delay's) is filtered as doubles:
@@ -797,14 +819,14 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
   // A fit simulates the same record with the same displacement at every evaluation: the filtered
   // signals of the last call on this thread are reused when time, displacement and windows are
   // equal to the last element (the filter was a fourteenth of a diagnosis).
-  if (std::none_of(xs.begin(), xs.end(), [](const T& s) { return has_derivative(s); })) {
+  if (std::none_of(ds->begin(), ds->end(), [](const T& s) { return has_derivative(s); })) {
     thread_local std::vector<double> td, xd, vd, ad;
     thread_local DerivativeWindows wd;
     thread_local bool valid = false;  // false while (or after) the filter throws
     bool same = valid && td.size() == n && wd == *windows;
     td.resize(n), xd.resize(n);
     for (std::size_t k = 0; k < n; ++k) {
-      const double xk = value_of(xs[k]);
+      const double xk = value_of((*ds)[k]);
       same = same && td[k] == time[k] && xd[k] == xk;
       td[k] = time[k];
       xd[k] = xk;
@@ -818,7 +840,7 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
     }
     for (std::size_t k = 0; k < n; ++k) v[k] = T(vd[k]), a[k] = T(ad[k]);
   } else {
-    apply_local_derivatives<T>(time, std::span<const T>(xs), *windows, std::span<T>(v),
+    apply_local_derivatives<T>(time, std::span<const T>(*ds), *windows, std::span<T>(v),
                                std::span<T>(a));
   }
   for (std::size_t k = 0; k < n; ++k) {
@@ -843,21 +865,23 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
 template <class Base, typename T = typename Base::Scalar>
 void simulate_extended(Extended<Base>& model, std::span<const double> time, std::span<const T> x,
                        std::span<const double> normal, std::span<T> force,
-                       const DerivativeWindows* windows = nullptr) {
+                       const DerivativeWindows* windows = nullptr,
+                       std::span<const double> measured = {}) {
   FRICTION_CHECK(force.size() == x.size(),
                  "simulate_extended: time, displacement and force must have the same length");
   for_each_extended_step(
       model, time, x, normal, windows,
-      [&](std::size_t k, const ExtendedMotion<T>&, const T& f) { force[k] = f; });
+      [&](std::size_t k, const ExtendedMotion<T>&, const T& f) { force[k] = f; }, measured);
 }
 
 /// Convenience overload returning the simulated force.
 template <class Base, typename T = typename Base::Scalar>
 std::vector<T> simulate_extended(Extended<Base>& model, std::span<const double> time,
                                  std::span<const T> x, std::span<const double> normal = {},
-                                 const DerivativeWindows* windows = nullptr) {
+                                 const DerivativeWindows* windows = nullptr,
+                                 std::span<const double> measured = {}) {
   std::vector<T> force(x.size());
-  simulate_extended(model, time, x, normal, std::span<T>(force), windows);
+  simulate_extended(model, time, x, normal, std::span<T>(force), windows, measured);
   return force;
 }
 

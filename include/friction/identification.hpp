@@ -32,6 +32,8 @@
 
 namespace friction {
 
+struct Record;
+
 /// One estimated parameter with its standard error and 95 % interval.
 struct ParameterEstimate {
   std::string name;  ///< e.g. "stiffness[1]", "threshold[3]", "input_filter[0]"
@@ -101,6 +103,11 @@ struct IdentificationReport {
 
 /// Displacement resolution q of a record (see the header comment) [m].
 double displacement_resolution(std::span<const double> x);
+
+/// q of the displacement as measured when the models see its local-polynomial estimate (the
+/// `displacement_resolution` option of NLR, LG and DNLRX); 0 when the record holds the displacement
+/// as measured (the identification then takes q from it) or it never moves.
+double record_resolution(const Record& r);
 
 /// Indices of the turning points of x, detected with hysteresis h [m] (a reversal counts once x
 /// has come back by more than h from its extreme, so noise does not make reversals): the first

@@ -131,7 +131,10 @@ struct LgOptions {
   int global_evaluations = 0;     ///< CRS2 budget; 0 means 1500
   int polish_evaluations = 1500;  ///< BOBYQA budget per polished point
   unsigned seed = 1;              ///< seed of the global stage's own generator (reproducible)
-  int max_iterations = 50;        ///< Ceres iterations of the local stage
+  /// q [m] when > 0: the resolution of the displacement as measured (NlrOptions says why); 0:
+  /// from the displacement given.
+  double displacement_resolution = 0;
+  int max_iterations = 50;  ///< Ceres iterations of the local stage
   LgJacobian jacobian = LgJacobian::Cvodes;
   /// CVODES settings for the Jacobian (sensitivities and log_parameters are forced on).
   CvodesOptions cvodes = lg_default_cvodes();
@@ -181,9 +184,11 @@ struct LgResult {
 
 /// The data-driven start (step 1 of the header comment).  Throws InvalidParameter when the record
 /// is unusable (lengths differ, fewer than 20 samples, no motion, zero force) or never slides
-/// (presliding alone cannot determine Fc, Fs, vs, mu, sigma2).
+/// (presliding alone cannot determine Fc, Fs, vs, mu, sigma2).  `resolution`: q [m] of the
+/// displacement as measured (LgOptions::displacement_resolution); 0: from x.
 LgStart lugre_start(std::span<const double> time, std::span<const double> x,
-                    std::span<const double> force, StribeckShape shape = StribeckShape::Rational);
+                    std::span<const double> force, StribeckShape shape = StribeckShape::Rational,
+                    double resolution = 0);
 
 /// Identify the LuGre model from displacement `x` [m] and force [N] (model's sign convention)
 /// sampled at `time` [s], strictly increasing.  Throws as `lugre_start`.

@@ -131,6 +131,10 @@ struct NlrOptions {
   /// The starts of one M (the warm and the dictionary start in the order selection) run on this
   /// many threads (0: one per core); the result does not depend on it.
   unsigned threads = 1;
+  /// q [m] when > 0: the resolution of the displacement as measured, for a record whose models
+  /// see its local-polynomial estimate (record.hpp, measured_displacement; record_resolution);
+  /// 0: from the displacement given.
+  double displacement_resolution = 0;
 };
 
 struct NlrResult {

@@ -34,7 +34,11 @@ struct Conditioning {
   // Noise and resolution, for identification (bounds on thresholds, the error floor).
   double displacement_resolution = 0.0;  ///< [m]: the quantum, or the noise level if unquantised
   bool displacement_quantised = false;   ///< an encoder-like quantum was found
-  double force_noise = 0.0;              ///< standard deviation of the force noise [N]; 0 if none
+  /// The displacement the models see (sample_derivatives.hpp, "The displacement the models see"):
+  /// the value at t_k of a local polynomial of this half width and degree (1 and 2: as measured).
+  std::size_t displacement_half_width = 1;
+  std::size_t displacement_degree = 2;
+  double force_noise = 0.0;  ///< standard deviation of the force noise [N]; 0 if none
 
   std::vector<std::string> warnings;  ///< one sentence each, for the document and stderr
 };
@@ -42,10 +46,13 @@ struct Conditioning {
 /// Signals of one experiment in SI units and the model's sign convention (methods.md).
 struct Record {
   std::vector<double> time;          ///< [s], strictly increasing
-  std::vector<double> displacement;  ///< x [m]
-  std::vector<double> force;         ///< F [N]; empty when the record has no force (simulate)
-  std::vector<double> normal;        ///< normal force [N]; empty when not recorded
-  std::string source;                ///< file name or description, for messages
+  std::vector<double> displacement;  ///< x [m], as the models see it (signal conditioning)
+  /// x as measured [m] when conditioning replaced `displacement` by its local-polynomial
+  /// estimate (an encoder's staircase); empty otherwise.  The derivative windows come from it.
+  std::vector<double> measured_displacement;
+  std::vector<double> force;   ///< F [N]; empty when the record has no force (simulate)
+  std::vector<double> normal;  ///< normal force [N]; empty when not recorded
+  std::string source;          ///< file name or description, for messages
 
   /// Line of sample 0 in `source` (1-based; sample k is on line first_line + k because blank
   /// lines are allowed only at the end of a file); 0 when the record was not read from text.
@@ -58,6 +65,10 @@ struct Record {
   std::size_t size() const noexcept { return time.size(); }
   bool has_force() const noexcept { return !force.empty(); }
   bool has_normal() const noexcept { return !normal.empty(); }
+  /// The displacement as measured (the one the derivative windows are chosen on).
+  const std::vector<double>& measured() const noexcept {
+    return measured_displacement.empty() ? displacement : measured_displacement;
+  }
 
   /// Line in `source` of sample k, or 0 when unknown.
   long line_of(std::size_t k) const noexcept {
@@ -77,6 +88,7 @@ struct Record {
     };
     r.time = cut(time);
     r.displacement = cut(displacement);
+    r.measured_displacement = cut(measured_displacement);
     r.force = cut(force);
     r.normal = cut(normal);
     r.source = source;

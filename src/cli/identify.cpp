@@ -70,6 +70,12 @@ Json data_json(const Record& r, const std::string& role) {
           {"irregular_sampling", c.irregular},
           {"gaps", c.gaps.size()},
           {"displacement_resolution", c.displacement_resolution},
+          // The displacement the models see (sample_derivatives.hpp): the local polynomial's
+          // value, or the samples themselves.
+          {"displacement_estimate",
+           {{"as_measured", r.measured_displacement.empty()},
+            {"half_width", c.displacement_half_width},
+            {"degree", c.displacement_degree}}},
           {"force_noise", c.force_noise},
           {"normal_force", r.has_normal()}};
 }

@@ -21,7 +21,7 @@ int run_simulate(const SimulateOptions& o) {
   for (const auto& w : record.conditioning.warnings) std::cerr << "warning: " << w << "\n";
   const std::vector<double> simulated = model.simulate(record);
 
-  std::vector<CsvColumn> columns{{"time", record.time}, {"displacement", record.displacement}};
+  std::vector<CsvColumn> columns{{"time", record.time}, {"displacement", record.measured()}};
   std::vector<double> residual;
   if (record.has_force()) {
     residual.resize(record.size());
