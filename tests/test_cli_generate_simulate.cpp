@@ -86,6 +86,21 @@ TEST(CliGenerate, EncoderResolutionQuantisesTheDisplacement) {
   ASSERT_EQ(run_cli("generate" + kShort + "--resolution 1e-7 --out " + rec).status, 0);
   const auto r = friction::read_record(rec);
   for (double x : r.measured()) ASSERT_NEAR(x / 1e-7, std::round(x / 1e-7), 1e-6);
+  // The models see the staircase's estimate (sample_derivatives.hpp), which differs from it...
+  ASSERT_FALSE(r.measured_displacement.empty());
+  EXPECT_NE(r.displacement, r.measured_displacement);
+  // ...but `simulate` writes back the displacement as it was read.
+  const std::string truth = dir.file("t.json"), sim = dir.file("sim.csv");
+  ASSERT_EQ(
+      run_cli("generate" + kShort + "--resolution 1e-7 --out " + rec + " --truth " + truth).status,
+      0);
+  ASSERT_EQ(run_cli("simulate --model-file " + truth + " --data " + rec + " --out " + sim).status,
+            0);
+  friction::ReadOptions o;
+  o.columns.force = "simulated";
+  o.force_sign = friction::ForceSign::positive;
+  const auto written = friction::read_record(sim, o);
+  EXPECT_EQ(written.measured(), friction::read_record(rec).measured());
 }
 
 TEST(CliGenerate, EffectsChangeTheForceAsTheirFormulaSays) {
