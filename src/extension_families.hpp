@@ -442,11 +442,9 @@ std::vector<double> family_run(const Record& r, const Family& family,
                                const std::vector<double>& state) {
   auto model = family.template make<double>(theta_base, ext);
   family.template set_state<double>(model, theta_base, state.data());
-  const DerivativeWindows windows = record_derivative_windows(r);
-  return simulate_extended(model, std::span<const double>(r.time),
-                           std::span<const double>(r.displacement),
-                           std::span<const double>(r.normal), &windows,
-                           std::span<const double>(r.measured_displacement));
+  return simulate_extended(
+      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
+      std::span<const double>(r.normal), nullptr, std::span<const double>(r.measured_displacement));
 }
 
 inline double rss_of(const Record& r, const std::vector<double>& f) {

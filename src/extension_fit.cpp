@@ -33,10 +33,9 @@ ExtendedSlipRun run_extended_slip(const MaxwellSlipParameters<double>& base,
   out.sliding.resize(n);
   out.velocity.resize(n);
   out.acceleration.resize(n);
-  const DerivativeWindows windows = record_derivative_windows(r);
   for_each_extended_step(
       model, std::span<const double>(r.time), std::span<const double>(r.displacement),
-      std::span<const double>(r.normal), &windows,
+      std::span<const double>(r.normal), nullptr,
       [&](std::size_t k, const ExtendedMotion<double>& c, double force) {
         out.force[k] = force;
         out.sliding[k] = model.base().sliding(model.level(), asymmetry) ? 1 : 0;
@@ -418,10 +417,9 @@ double first_level(const MaxwellSlipParameters<double>& base,
     return 1.0;
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(base), ext, 2);
   double level = 1.0;
-  const DerivativeWindows own = windows ? *windows : record_derivative_windows(r);
   for_each_extended_step(
       model, std::span<const double>(r.time), std::span<const double>(r.displacement),
-      std::span<const double>(r.normal), &own,
+      std::span<const double>(r.normal), windows,
       [&](std::size_t k, const ExtendedMotion<double>&, double) {
         if (k == 0) level = model.level();
       },

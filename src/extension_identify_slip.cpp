@@ -159,10 +159,9 @@ PiecesAlongRun pieces_along_run(const Record& r, const ExtendedSlipFit& cur) {
   model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho, cur.ext)),
                      model.asymmetry());
   PiecesAlongRun run{std::vector<double>(r.size()), std::vector<double>(r.size())};
-  const DerivativeWindows windows = record_derivative_windows(r);
   for_each_extended_step(
       model, std::span<const double>(r.time), std::span<const double>(r.displacement),
-      std::span<const double>(r.normal), &windows,
+      std::span<const double>(r.normal), nullptr,
       [&](std::size_t k, const ExtendedMotion<double>& c, double) {
         const double vl = cur.ext.frictional_lag ? model.lagged_velocity() : c.piece_velocity;
         double added = 0;

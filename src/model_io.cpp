@@ -332,14 +332,13 @@ double AnyModel::step(const Motion<double>& motion) noexcept {
 
 std::vector<double> AnyModel::simulate(const Record& record) {
   std::vector<double> force(record.size());
-  const DerivativeWindows windows = record_derivative_windows(record);
   std::visit(
       [&](auto& m) {
         m.reset();
         simulate_extended(m, std::span<const double>(record.time),
                           std::span<const double>(record.displacement),
-                          std::span<const double>(record.normal), std::span<double>(force),
-                          &windows, std::span<const double>(record.measured_displacement));
+                          std::span<const double>(record.normal), std::span<double>(force), nullptr,
+                          std::span<const double>(record.measured_displacement));
       },
       model_);
   return force;

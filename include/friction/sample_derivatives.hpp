@@ -76,12 +76,13 @@
 //     E_x(m) = (1/L) sum_j |H_m(w_j) - 1|^2 S_x(w_j) + |H_m|^2 N(w_j),
 // minimised over m and the degree.  Without displacement noise the rule keeps m = 1 and degree 2,
 // a quadratic through three samples, which passes them unchanged.  The record keeps what was
-// measured beside it (Record::measured_displacement), and the derivative windows are chosen on
-// that and applied to the estimate: chosen on the estimate, the rule would see noise that the
-// value filter has already coloured, and the acceleration errors came out 1.6 times larger
-// (geometric mean over 30 records of the independent simulator, seeds 9100-9129, up to 6 times);
-// chosen on the measurement and applied to the estimate they are 0.97 times those of the
-// measurement itself.  The displacement resolution q that bounds the thresholds and detects
+// measured beside it (Record::measured_displacement), and velocity and acceleration are still
+// taken of the measurement, with the windows chosen on it.  Chosen on the estimate, the rule sees
+// noise that the value filter has already coloured, and the acceleration errors came out 1.6
+// times larger (geometric mean over 30 records of the independent simulator, seeds 9100-9129, up
+// to 6 times); chosen on the measurement and applied to the estimate, they were 0.97 times those
+// of the measurement there but worse than 1.5 times the best fixed window on 2 of the 30 records
+// of seeds 5100-5129.  The displacement resolution q that bounds the thresholds and detects
 // reversals is that of the measurement (record_resolution).  A controller's `step` sees what its
 // encoder gives; a model identified on the estimate is the better one for it all the same, as its
 // parameters are not biased by the staircase.
