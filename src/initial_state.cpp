@@ -100,7 +100,7 @@ class OneOperator {
   }
 
   /// Global minimiser over d of sum_t (y(t) - sum_j taps_j delta(t-j; d))^2.
-  double minimise(const Eigen::VectorXd& y) const {
+  double minimise(const Eigen::Ref<const Eigen::VectorXd>& y) const {
     // Prefix sums of r = y - eta and r^2, and suffix sums of the squared residuals of either
     // reference trajectory, at the marks only: each segment between marks is a vectorised
     // reduction (a running sum over every sample is a chain of dependent additions, which was
@@ -266,18 +266,42 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
                                             static_cast<Eigen::Index>(target.size()));
 
   // Operator i's filtered trajectory in pieces (OneOperator): no evaluation steps the recursion.
+  // Each operator depends on its own d_i only over its own prefix [0, T_i), until the displacement
+  // has covered 2 Delta_i (plus the filter's lags); after it its contribution is the same for every
+  // d_i (the trajectories from +Delta_i and -Delta_i have met) and is added once to `fixed`.  So an
+  // evaluation costs sum_i T_i instead of M times the longest prefix: on records where one
+  // operator's threshold is near the travel (a linear spring) the others' prefixes are short.
+  const Eigen::Index n_prefix = y.size();
+  const auto prefix_of = [&](double threshold) {
+    double lo = x[0], hi = x[0];
+    for (std::size_t t = 0; t < x.size(); ++t) {
+      lo = std::min(lo, x[t]);
+      hi = std::max(hi, x[t]);
+      if (hi - lo >= 2.0 * threshold)
+        return std::min(n_prefix, static_cast<Eigen::Index>(t) + filter.cols() + 1);
+    }
+    return n_prefix;
+  };
   std::vector<OneOperator> single;
-  for (std::size_t i = 0; i < m; ++i)
-    single.emplace_back(x, thresholds[i],
-                        Eigen::RowVectorXd(filter.row(static_cast<Eigen::Index>(i))));
+  std::vector<Eigen::Index> own(m);
+  Eigen::VectorXd fixed = Eigen::VectorXd::Zero(n_prefix);
   std::vector<char> active(m);
-  for (std::size_t i = 0; i < m; ++i)
-    active[i] = !filter.row(static_cast<Eigen::Index>(i)).isZero();
+  for (std::size_t i = 0; i < m; ++i) {
+    const Eigen::RowVectorXd taps = filter.row(static_cast<Eigen::Index>(i));
+    active[i] = !taps.isZero();
+    own[i] = prefix_of(thresholds[i]);
+    single.emplace_back(x.first(static_cast<std::size_t>(own[i])), thresholds[i], taps);
+    if (active[i] && own[i] < n_prefix) {
+      const Eigen::VectorXd after =
+          filtered(single_trajectory(x, thresholds[i], thresholds[i]), taps);
+      fixed.tail(n_prefix - own[i]) += after.tail(n_prefix - own[i]);
+    }
+  }
   Eigen::VectorXd force(y.size());
   const auto predict = [&](const std::vector<double>& d, Eigen::VectorXd& f) {
-    f.setZero(y.size());
+    f = fixed;
     for (std::size_t i = 0; i < m; ++i)
-      if (active[i]) single[i].contribution(d[i], f, true);
+      if (active[i]) single[i].contribution(d[i], f.head(own[i]), true);
   };
   auto cost_of = [&](const std::vector<double>& d) {
     predict(d, force);
@@ -323,25 +347,31 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
     for (int round = 0; round < rounds; ++round) {
       const double round_start = best_cost;
       {
-        for (Eigen::Index i = 0; i < mi; ++i)
-          single[static_cast<std::size_t>(i)].contribution(best[static_cast<std::size_t>(i)],
-                                                           contribution.col(i), false);
-        total = contribution.rowwise().sum();
+        // Column i holds operator i's contribution over its own prefix; `total` adds `fixed`.
+        contribution.setZero();
+        for (Eigen::Index i = 0; i < mi; ++i) {
+          const std::size_t iu = static_cast<std::size_t>(i);
+          single[iu].contribution(best[iu], contribution.col(i).head(own[iu]), false);
+        }
+        total = contribution.rowwise().sum() + fixed;
         for (int sweep = 0; sweep < sweeps; ++sweep) {
           bool moved = false;
           for (Eigen::Index i = 0; i < mi; ++i) {
             const std::size_t iu = static_cast<std::size_t>(i);
             if (filter.row(i).isZero()) continue;
-            yi = y - (total - contribution.col(i));
-            const double d = single[iu].minimise(yi);
+            // Beyond its prefix operator i's contribution does not depend on d_i: the step is
+            // chosen, and compared, over the prefix.
+            const Eigen::Index ti = own[iu];
+            yi.head(ti) = y.head(ti) - (total.head(ti) - contribution.col(i).head(ti));
+            const double d = single[iu].minimise(yi.head(ti));
             if (d == best[iu]) continue;
-            single[iu].contribution(d, ci, false);
-            const double before = (yi - contribution.col(i)).squaredNorm();
-            const double after = (yi - ci).squaredNorm();
+            single[iu].contribution(d, ci.head(ti), false);
+            const double before = (yi.head(ti) - contribution.col(i).head(ti)).squaredNorm();
+            const double after = (yi.head(ti) - ci.head(ti)).squaredNorm();
             if (after < before - 1e-9 * best_cost) {
               best[iu] = d;
-              total += ci - contribution.col(i);
-              contribution.col(i) = ci;
+              total.head(ti) += ci.head(ti) - contribution.col(i).head(ti);
+              contribution.col(i).head(ti) = ci.head(ti);
               moved = true;
             }
           }
@@ -352,10 +382,11 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
 
       for (int it = 0; it < gn_iterations; ++it) {
         predict(best, force);
-        jacobian.resize(y.size(), mi);
-        for (Eigen::Index i = 0; i < mi; ++i)
-          single[static_cast<std::size_t>(i)].sensitivity(best[static_cast<std::size_t>(i)],
-                                                          jacobian.col(i));
+        jacobian.setZero(y.size(), mi);
+        for (Eigen::Index i = 0; i < mi; ++i) {
+          const std::size_t iu = static_cast<std::size_t>(i);
+          single[iu].sensitivity(best[iu], jacobian.col(i).head(own[iu]));
+        }
         r = y - force;
         Eigen::VectorXd lo(mi), hi(mi);
         for (Eigen::Index i = 0; i < mi; ++i) {

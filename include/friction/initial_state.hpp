@@ -40,7 +40,9 @@
 //
 // Only a prefix of the record depends on d: once the displacement has covered a range of
 // 2 max(Delta_i) every operator has saturated whatever its initial deflection, and (n samples of
-// filter lag later) the force no longer depends on d.  The estimate uses that prefix only.
+// filter lag later) the force no longer depends on d.  The estimate uses that prefix only, and
+// each operator its own (the range 2 Delta_i is covered sooner): an evaluation costs the sum of
+// the operators' prefixes, not M times the longest.
 //
 // The same routine serves DNLRX: its operators enter through a spring filter,
 // Fhat(t) = sum_i sum_j filter(i, j) delta_i(t - j) + (terms that do not depend on d), with the
