@@ -5,9 +5,12 @@
 // ~45 mm/s), generated with the exact step from paper-like parameters (sigma0 = 1e5 N/m,
 // sigma1 = sqrt(sigma0), sigma2 = 0.4 N s/m, Fc = 1 N, Fs = 1.5 N, vs = 1 mm/s, mu = 2) and an
 // initial state z0 = -0.4 Fs / sigma0, plus white force noise of 0.01 N.
-// Argument: 0 = CVODES Jacobian with Adams (the default), 1 = exact-step autodiff Jacobian,
-// 2 = CVODES Jacobian with BDF.  Counters: the
-// stage times [s], the number of Jacobians of the local stage, RSS/SSS % and the noise floor.
+// BM_IdentifyLuGre argument: the local stage's iterations with 0 = CVODES Jacobians with Adams,
+// 1 = exact-step autodiff Jacobians (the default; one CVODES run checks the optimum),
+// 2 = CVODES Jacobians with BDF.  Counters: the stage times [s], the number of Jacobians of the
+// local stage and its check, RSS/SSS % and the noise floor.
+// BM_LgJacobian: one residual-and-Jacobian evaluation of LgCostFunction at the generating
+// parameters, 0 = CVODES sensitivities (Adams), 1 = exact-step autodiff.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -60,6 +63,7 @@ void BM_IdentifyLuGre(benchmark::State& state) {
   const auto& r = record();
   LgOptions o;
   o.jacobian = state.range(0) == 1 ? LgJacobian::ExactStep : LgJacobian::Cvodes;
+  o.cvodes_check = state.range(0) == 1;
   if (state.range(0) == 2) o.cvodes.method = CvodesMethod::BDF;
   LgResult result;
   for (auto _ : state) {
@@ -73,9 +77,32 @@ void BM_IdentifyLuGre(benchmark::State& state) {
   state.counters["jacobians"] = result.timings.jacobian_evaluations;
   state.counters["rss_pct"] = result.report.estimation.rss_sss_percent;
   state.counters["floor_pct"] = result.report.noise_floor_percent;
-  const char* labels[] = {"cvodes-adams-jacobian", "exact-step-jacobian", "cvodes-bdf-jacobian"};
+  const char* labels[] = {"cvodes-adams-jacobian", "exact-step-jacobian+cvodes-check",
+                          "cvodes-bdf-jacobian"};
   state.SetLabel(labels[state.range(0)]);
 }
 BENCHMARK(BM_IdentifyLuGre)->Arg(0)->Arg(1)->Arg(2)->Iterations(2)->Unit(benchmark::kSecond);
+
+void BM_LgJacobian(benchmark::State& state) {
+  const auto& r = record();
+  const LuGreParameters<double> p{1e5, std::sqrt(1e5), 0.4, 1.0, 1.5, 1e-3, 2.0};
+  const std::size_t n = r.x.size();
+  const LgCostFunction cost(r.time, r.x, r.force, 1.0, 1.5 / 1e5, StribeckShape::Rational,
+                            state.range(0) == 1 ? LgJacobian::ExactStep : LgJacobian::Cvodes,
+                            lg_default_cvodes());
+  std::vector<double> log_theta, residuals(n), jacobian(n * LuGreParameters<double>::kSize),
+      state_jacobian(n);
+  for (double v : p.to_array()) log_theta.push_back(std::log(v));
+  double u = -0.4;
+  const double* blocks[2] = {log_theta.data(), &u};
+  double* jacobians[2] = {jacobian.data(), state_jacobian.data()};
+  for (auto _ : state) {
+    const bool ok = cost.Evaluate(blocks, residuals.data(), jacobians);
+    benchmark::DoNotOptimize(ok);
+    log_theta[0] += 1e-12;  // a new point each time: no memo
+  }
+  state.SetLabel(state.range(0) == 1 ? "exact-step" : "cvodes-adams");
+}
+BENCHMARK(BM_LgJacobian)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace

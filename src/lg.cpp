@@ -14,6 +14,7 @@
 #include <limits>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <utility>
@@ -21,6 +22,7 @@
 #include "bounded_solver.hpp"
 #include "friction/covariance_report.hpp"
 #include "friction/error.hpp"
+#include "friction/lugre_transition_table.hpp"
 #include "friction/motion.hpp"
 #include "sample_statistics.hpp"
 
@@ -93,23 +95,33 @@ bool finite_parameters(const LuGreParameters<double>& p) {
 
 // RSS/SSS % of a free run (exact step), +inf-like when the parameters are unusable.
 //
-// The global stage runs thousands of these, and on a record from an encoder at a fixed rate the
-// motions repeat: data/ has 757 distinct (velocity, interval) pairs in 10,221 samples, a strokes
-// record 445 in 10,000, the tribometer 121 in 21,289.  Each distinct pair's transition (its s(v)
-// and exp(-|v| dt / s), LuGre::Transition) is then computed once per parameter set and the samples
-// only carry the state through it: the same operations on the same numbers as the plain run.
+// The global stage runs thousands of these, most of whose time is each sample's transition (its
+// s(v) and exp(-|v| dt / s), LuGre::Transition).  Two ways to compute fewer:
+//  * On a record whose motions repeat (an encoder's staircase at a fixed rate: data/ as measured
+//    has 757 distinct (velocity, interval) pairs in 10,221 samples, the tribometer 121 in 21,289)
+//    each distinct pair's transition is computed once per parameter set and the samples only
+//    carry the state through it: the same operations on the same numbers as the plain run.
+//  * Otherwise, on a record sampled at one interval (a displacement without a staircase, as the
+//    CLI's conditioned records are), the transitions are tabulated over ln|v| and interpolated
+//    (lugre_transition_table.hpp: relative force error below 1e-5, and a few hundred nodes per
+//    parameter set instead of N transitions).  The local stage and every reported figure use the
+//    exact step.
 struct Objective {
   std::span<const double> force;
   std::vector<Motion<double>> motions;
   double sss = 0;
   StribeckShape shape = StribeckShape::Rational;
   mutable std::vector<double> buffer;
-  std::vector<Motion<double>> distinct;  // empty: every sample steps on its own
+  std::vector<Motion<double>> distinct;  // empty: no memo
   std::vector<std::uint32_t> which;      // sample k's entry of `distinct`
   mutable std::vector<LuGre<double>::Transition> transitions;
+  std::optional<LuGreTransitionTable> table;
 
-  // Indexes the distinct motions (by their bits; only velocity and interval enter a step) when
-  // they are few enough to gain.
+  // Chooses how transitions are shared.  Measured (10,000 samples, GCC 12 -O2): a transition
+  // costs ~53 ns, carrying the state through a shared one ~3.4 ns, interpolating one from the
+  // table and carrying the state ~11 ns.  So the memo (exact) is kept while its distinct motions
+  // D stay below the table's nodes G plus N/8 (53 D + 3.4 N < 53 G + 11 N); otherwise the table
+  // when the record has one, the memo when it still gains, else every sample steps.
   void index_motions() {
     distinct.clear();
     which.assign(motions.size(), 0);
@@ -121,13 +133,23 @@ struct Objective {
       if (added) distinct.push_back(motions[k]);
       which[k] = it->second;
     }
-    if (4 * distinct.size() > 3 * motions.size()) distinct.clear(), which.clear();
+    LuGreTransitionTable t(motions);
+    if (t.usable() && t.nodes() + motions.size() / 8 < distinct.size()) {
+      table = std::move(t);
+      distinct.clear(), which.clear();
+    } else if (4 * distinct.size() > 3 * motions.size()) {
+      distinct.clear(), which.clear();
+    }
   }
 
   double percent(const LuGreParameters<double>& p, double z0) const {
     if (!finite_parameters(p) || !std::isfinite(z0)) return kHuge;
     buffer.resize(force.size());
-    if (!which.empty()) {
+    if (table) {
+      LuGre<double> model(p);
+      model.reset(z0);
+      table->run(model, buffer.data());
+    } else if (!which.empty()) {
       LuGre<double> model(p);
       transitions.resize(distinct.size());
       for (std::size_t i = 0; i < distinct.size(); ++i)
@@ -770,13 +792,18 @@ double estimate_lugre_initial_state(const LuGreParameters<double>& parameters,
   obj.sss = 0;
   for (double f : force) obj.sss += f * f;
   const double zr = rest_deflection(parameters);
-  double best_z = 0.0, best = obj.percent(parameters, 0.0);
+  // The scan only chooses where Gauss-Newton starts: its free runs may share or tabulate their
+  // transitions (Objective::index_motions); the steps are accepted on the exact step.
+  Objective scan = obj;
+  scan.index_motions();
+  double best_z = 0.0, best = scan.percent(parameters, 0.0);
   constexpr int kGrid = 41;
   for (int i = 0; i < kGrid; ++i) {
     const double z = zr * kStateBound * (2.0 * i / (kGrid - 1) - 1.0);
-    const double c = obj.percent(parameters, z);
+    const double c = scan.percent(parameters, z);
     if (c < best) best = c, best_z = z;
   }
+  best = obj.percent(parameters, best_z);
   // Gauss-Newton in z on the exact step with a one-direction Jet.
   using Jet = ceres::Jet<double, 1>;
   const auto pj = parameters.cast<Jet>();
@@ -843,6 +870,9 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
   obj.force = force;
   obj.motions = motions_of(time, x);
   if (o.memoise_steps) obj.index_motions();
+  result.timings.global_transitions = obj.table           ? "tabulated"
+                                      : obj.which.empty() ? "exact"
+                                                          : "shared";
   obj.shape = o.shape;
   for (double f : force) obj.sss += f * f;
   const double scale = std::sqrt(obj.sss / nd);
@@ -899,7 +929,7 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
     if (global_polished.percent < best.percent) best = global_polished;
   }
 
-  // Local stage: Ceres with the CVODES (or exact-step) Jacobian.
+  // Local stage: Ceres with the exact step's (or CVODES') Jacobian.
   const auto p_best = from_log({best.v.data(), kP}, o.shape);
   const double z_ref = rest_deflection(p_best);
   std::vector<double> log_theta(best.v.begin(), best.v.begin() + kP);
@@ -933,6 +963,30 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
     final_jacobian = cost->take_memo();
     lap(result.timings.local);
   }
+  // The check at the optimum: CVODES' forward sensitivities against the exact step's Jacobian
+  // (the same model: the exact step is exact for the piecewise-constant velocity CVODES
+  // integrates).  Its Jacobian is then the covariance's.
+  double cvodes_difference = -1;
+  if (o.cvodes_check && o.jacobian != LgJacobian::Cvodes) {
+    using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    RowMajor jc(static_cast<Eigen::Index>(n), kP), je(static_cast<Eigen::Index>(n), kP);
+    std::vector<double> r(n), sc(n), se(n);
+    const double* blocks[2] = {log_theta.data(), &u};
+    double* jcs[2] = {jc.data(), sc.data()};
+    double* jes[2] = {je.data(), se.data()};
+    LgCostFunction cv(time, x, force, scale, z_ref, o.shape, LgJacobian::Cvodes, o.cvodes);
+    const LgCostFunction ex(time, x, force, scale, z_ref, o.shape, LgJacobian::ExactStep, o.cvodes);
+    if (cv.Evaluate(blocks, r.data(), jcs) && ex.Evaluate(blocks, r.data(), jes)) {
+      cvodes_difference = (jc - je).norm() / std::max(je.norm(), 1e-300);
+      final_jacobian = cv.take_memo();
+      ++result.timings.jacobian_evaluations;
+    } else {
+      rep.warnings.push_back(
+          "CVODES could not integrate the sensitivities at the optimum: the covariance uses the "
+          "exact step's Jacobian");
+    }
+    lap(result.timings.local);
+  }
   result.parameters = from_log(log_theta, o.shape);
   {
     Point local;
@@ -961,6 +1015,18 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
   conv.initial_cost = 100.0 * 2.0 * summary.initial_cost / nd;
   conv.final_cost = rep.estimation.rss_sss_percent;
   conv.message = summary.message;
+  if (cvodes_difference >= 0) {
+    std::ostringstream m;
+    m << "; at the optimum CVODES' sensitivities and the exact step's Jacobian differ by "
+      << cvodes_difference << " (relative, Frobenius)";
+    conv.message += m.str();
+    if (cvodes_difference > 1e-2) {
+      std::ostringstream w;
+      w << "CVODES' sensitivities at the optimum differ from the exact step's Jacobian by "
+        << cvodes_difference << " (relative): the standard errors are uncertain";
+      rep.warnings.push_back(w.str());
+    }
+  }
   if (!conv.converged)
     rep.warnings.push_back("the local search (Ceres) did not report convergence: " +
                            summary.message);
@@ -1040,8 +1106,9 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
     // within 1e-5 on data/ and the tribometer), where Ceres' last Jacobian already is.
     std::vector<double> lt_fit = log_theta;
     double u_fit = u;
-    auto* fit_cost =
-        new LgCostFunction(time, x, force, scale, z_ref, o.shape, o.jacobian, o.cvodes);
+    auto* fit_cost = new LgCostFunction(
+        time, x, force, scale, z_ref, o.shape,
+        o.cvodes_check && cvodes_difference >= 0 ? LgJacobian::Cvodes : o.jacobian, o.cvodes);
     fit_cost->reuse(std::move(final_jacobian));
     ceres::Problem problem;
     problem.AddResidualBlock(fit_cost, nullptr, lt_fit.data(), &u_fit);

@@ -325,11 +325,14 @@ bool has_warning(const std::vector<std::string>& warnings, const std::string& te
 
 // The global stage computes each distinct (velocity, interval) transition once per run on a
 // record whose motions repeat (an encoder at a fixed rate): it must end where stepping every
-// sample ends, bit for bit, on such a record (three speeds, a 0.1 um encoder: the memo is in use)
-// and on one with irregular sampling, whose motions do not repeat.
+// sample ends, bit for bit, on such a record (three speeds, a 0.1 um encoder, time stamps at a
+// binary interval so that the intervals repeat exactly: the memo is in use) and on one with
+// irregular sampling, whose motions do not repeat and which gets neither memo nor table.
 TEST(Lg, MemoisedStepsGiveTheSameIdentification) {
   const auto p = truth();
   Record quantised = stroke_record(p, {1e-3, 2.5e-3, 5e-3}, 1e-3, 1e-7, kSigma, 31);
+  for (std::size_t k = 0; k < quantised.time.size(); ++k)
+    quantised.time[k] = static_cast<double>(k) / 1024.0;
   Record irregular = quantised;
   std::mt19937 gen(32);
   std::uniform_real_distribution<double> jitter(-2e-4, 2e-4);
@@ -342,12 +345,48 @@ TEST(Lg, MemoisedStepsGiveTheSameIdentification) {
     o.max_iterations = 3;  // the local stage starts where the global one ended: kept short
     o.covariance = false;
     const LgResult memo = identify_lugre(r->time, r->x, r->force, o);
+    EXPECT_EQ(memo.timings.global_transitions, r == &quantised ? "shared" : "exact");
     o.memoise_steps = false;
     const LgResult plain = identify_lugre(r->time, r->x, r->force, o);
     const auto a = memo.parameters.to_array(), b = plain.parameters.to_array();
     for (std::size_t j = 0; j < a.size(); ++j) EXPECT_EQ(a[j], b[j]) << j;
     EXPECT_EQ(memo.report.estimation.rss, plain.report.estimation.rss);
     EXPECT_EQ(memo.report.starts.size(), plain.report.starts.size());
+  }
+}
+
+// On a record whose motions do not repeat (no encoder, time stamps as decimals) the global stage
+// interpolates its transitions from a table (lugre_transition_table.hpp), an approximation of the
+// exact step; the local stage polishes with the exact step.  The identification must end where
+// stepping every sample exactly ends, to the local stage's own tolerance: it stops when a step
+// changes the cost by less than 0.01 / N of itself, which is a chi-square change of ~0.01, some
+// 0.1 standard errors from the minimum.  So every parameter within a quarter of its standard
+// error, the estimation RSS within 0.02 / N of itself.  Two records, one presliding-rich, one of
+// strokes.
+TEST(Lg, TabulatedSearchEndsAtTheSameIdentification) {
+  const auto p = truth();
+  // The strokes' constant speeds repeat exactly; a nanometre of sensor noise on the displacement
+  // makes every motion distinct, as a conditioned record's are.
+  Record strokes = stroke_record(p, {1e-3, 2.5e-3, 5e-3, 8e-3}, 1e-3, 0.0, kSigma, 41);
+  std::mt19937 gen(43);
+  std::normal_distribution<double> sensor(0.0, 1e-9);
+  for (double& v : strokes.x) v += sensor(gen);
+  const Record mixed = lugre_record(6000, p, 0.0, kSigma, 42);
+  for (const Record* r : {static_cast<const Record*>(&strokes), &mixed}) {
+    LgOptions o;
+    const LgResult table = identify_lugre(r->time, r->x, r->force, o);
+    EXPECT_EQ(table.timings.global_transitions, "tabulated");
+    o.memoise_steps = false;
+    const LgResult plain = identify_lugre(r->time, r->x, r->force, o);
+    ASSERT_EQ(plain.report.parameters.size(), 7u);
+    for (std::size_t j = 0; j < 7; ++j) {
+      const auto& a = table.report.parameters[j];
+      const auto& b = plain.report.parameters[j];
+      ASSERT_GT(b.standard_error, 0.0) << b.name;
+      EXPECT_LE(std::abs(a.value - b.value), 0.25 * b.standard_error) << b.name;
+    }
+    EXPECT_NEAR(table.report.estimation.rss, plain.report.estimation.rss,
+                0.02 / static_cast<double>(r->x.size()) * plain.report.estimation.rss);
   }
 }
 

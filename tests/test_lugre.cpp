@@ -2,7 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <iostream>
 #include <random>
 #include <string>
 #include <vector>
@@ -10,6 +12,7 @@
 #include "friction/differentiator.hpp"
 #include "friction/lugre.hpp"
 #include "friction/lugre_cvodes.hpp"
+#include "friction/lugre_transition_table.hpp"
 #include "friction/simulate.hpp"
 #include "support/model_properties.hpp"
 
@@ -339,6 +342,72 @@ TEST(LuGreCvodes, UsesAGivenVelocityInsteadOfTheBackwardDifference) {
 }
 
 // --- Stick-slip of a mass pulled through a spring (Canudas de Wit et al. 1995) ----------------
+
+// The tabulated transitions (LG's search objective) against the exact step: random parameters
+// over LG's search box (sigma0 1e3..1e7 N/m, mu 0.3..6, vs over five decades, both shapes) on
+// records whose speeds span many decades (a smooth presliding-then-sliding motion plus a small
+// random walk, so that the speeds near reversals are tiny), at three sampling rates, time stamps
+// written as decimals.  The free-run force must agree to 1e-5 of its largest value (the header's
+// statement); a record at irregular intervals gets no table.
+TEST(LuGreTransitionTable, FreeRunsAgreeWithTheExactStep) {
+  std::mt19937 gen(90417);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const auto log_uniform = [&](double lo, double hi) { return lo * std::pow(hi / lo, unit(gen)); };
+  double worst = 0;
+  std::size_t tables = 0;
+  for (int trial = 0; trial < 24; ++trial) {
+    const double ts = std::array<double, 3>{1e-3, 2e-4, 5e-5}[trial % 3];
+    const std::size_t n = 6000;
+    std::vector<double> time(n), x(n);
+    std::normal_distribution<double> step(0.0, log_uniform(1e-10, 1e-7));
+    double walk = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      time[k] = std::stod(std::to_string(static_cast<double>(k) * ts));  // as a CSV holds it
+      const double t = static_cast<double>(k) / static_cast<double>(n);
+      walk += step(gen);
+      x[k] =
+          (t < 0.3 ? 3e-6 * std::sin(2 * M_PI * 4 * t) : 2e-3 * std::sin(2 * M_PI * 3 * t)) + walk;
+    }
+    LuGreParameters<double> p;
+    p.stiffness = log_uniform(1e3, 1e7);
+    p.micro_damping = log_uniform(1e-3, 30.0) * std::sqrt(p.stiffness);
+    p.viscous = log_uniform(1e-2, 1e2);
+    p.coulomb = log_uniform(0.3, 30.0);
+    p.static_force = p.coulomb * log_uniform(0.5, 3.0);
+    p.stribeck_velocity = log_uniform(1e-6, 1e-1);
+    p.stribeck_exponent = 0.3 + 5.7 * unit(gen);
+    p.shape = trial % 2 ? StribeckShape::Exponential : StribeckShape::Rational;
+    std::vector<Motion<double>> motions(n);
+    for (std::size_t k = 0; k < n; ++k) motions[k] = friction::motion_at<double>(time, x, k);
+    const friction::LuGreTransitionTable table(motions);
+    ASSERT_TRUE(table.usable()) << trial;
+    ++tables;
+    const double z0 = 0.3 * p.static_force / p.stiffness;
+    LuGre<double> model(p);
+    model.reset(z0);
+    std::vector<double> tabulated(n);
+    table.run(model, tabulated.data());
+    const std::vector<double> reference = exact(p, time, x, z0);
+    double largest = 0, error = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      largest = std::max(largest, std::abs(reference[k]));
+      error = std::max(error, std::abs(tabulated[k] - reference[k]));
+    }
+    worst = std::max(worst, error / largest);
+    EXPECT_LT(error, 1e-5 * largest) << "trial " << trial << " nodes " << table.nodes();
+  }
+  std::cout << "tables " << tables << ", largest relative force error " << worst << "\n";
+  std::vector<double> time(4000), x(4000);
+  std::mt19937 jitter_gen(5);
+  std::vector<Motion<double>> motions(time.size());
+  for (std::size_t k = 0; k < time.size(); ++k) {
+    time[k] = 1e-3 * static_cast<double>(k) + (k ? 2e-4 * unit(jitter_gen) : 0.0);
+    x[k] = 1e-3 * std::sin(0.01 * static_cast<double>(k));
+  }
+  for (std::size_t k = 0; k < time.size(); ++k)
+    motions[k] = friction::motion_at<double>(time, x, k);
+  EXPECT_FALSE(friction::LuGreTransitionTable(motions).usable());
+}
 
 TEST(LuGre, StickSlipOfASpringPulledMassIsPeriodic) {
   // m x'' = k (V t - x) - F(x', z), with the published parameters and the exponential curve.

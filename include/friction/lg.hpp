@@ -59,20 +59,27 @@
 //    sigma2 from 1e-4 Fc / vmax to max(3 sigma2, Fc / vmax), Fc and Fs x/÷ 3, vs from a tenth of
 //    the slowest to ten times the fastest sliding speed, mu in [0.3, 6]).  Its objective is the
 //    free-run RSS/SSS % with the exact step (`LuGre<double>`; a few hundred microseconds per
-//    evaluation for 10,000 samples).  The data-driven start and the CRS2 optimum are each
-//    polished by NLopt's BOBYQA (derivative-free, deterministic, same objective, 1500 evaluations);
-//    both are logged in `report.starts`, with `distinct` set when a minimum differs by more than
-//    one percent from every earlier one.  The polish is cheap where the local stage is not: one
-//    CVODES Jacobian costs as much as ~2000 exact-step evaluations, and with 400 BOBYQA
-//    evaluations Ceres still needed 6-11 Jacobians on sigma0 = 1e6 records, with 1500 it needs 1-2
-//    (measured, 6000 samples).
+//    evaluation for 10,000 samples), its transitions shared between samples whose motions repeat
+//    or, when none do, interpolated over the speed (`LgOptions::memoise_steps`).  The data-driven
+//    start and the CRS2 optimum are each polished by NLopt's BOBYQA (derivative-free,
+//    deterministic, same objective, 1500 evaluations); both are logged in `report.starts`, with
+//    `distinct` set when a minimum differs by more than one percent from every earlier one.  The
+//    polish is cheap where the local stage is not: one CVODES Jacobian costs as much as ~2000
+//    exact-step evaluations, and with 400 BOBYQA evaluations Ceres still needed 6-11 Jacobians on
+//    sigma0 = 1e6 records, with 1500 it needs 1-2 (measured, 6000 samples).
 // 3. Local stage: Ceres Levenberg-Marquardt from the best polished point, on the N residuals
 //    (F - Fhat) / rms(F), with one parameter block of the 7 log-parameters and one for u, both
 //    bounded by the same box.  Residuals come from the exact step (exact for the piecewise-
-//    constant velocity); the Jacobian from CVODES forward sensitivities (`simulate_lugre_cvodes`
-//    with log_parameters, whose right-hand-side partials are autodiff) or, with
-//    `LgJacobian::ExactStep`, from autodiff through the exact step (ceres::Jet).  After the local
-//    stage z0 is re-estimated by `estimate_lugre_initial_state`, the routine validation uses.
+//    constant velocity); the iterations' Jacobian from autodiff through the exact step
+//    (ceres::Jet, `LgJacobian::ExactStep`, the default) or from CVODES forward sensitivities
+//    (`simulate_lugre_cvodes` with log_parameters, whose right-hand-side partials are autodiff).
+//    A CVODES sensitivity run costs as much as ~150 exact-step Jacobians (`bench_lg`, 10,000
+//    samples: 265 ms against 1.8 ms), and on the bench records the one or two it took per fit
+//    were half of LG's time; so CVODES now checks the optimum (`LgOptions::cvodes_check`): one
+//    sensitivity run there, its relative difference from the exact step's Jacobian in the
+//    convergence message (1.5e-4 to 5e-4 on data/, the tribometer and the bench records; a
+//    warning above 1e-2), and it is the Jacobian of the covariance.  After the local stage z0
+//    is re-estimated by `estimate_lugre_initial_state`, the routine validation uses.
 // 4. Report: parameters with units; standard errors from ceres::Covariance of log theta at the
 //    optimum (z0 held at its estimate), scaled by RSS / (N - 8); 95 % intervals log-normal,
 //    value * exp(+-1.96 se_log).  DENSE_SVD with a null-space tolerance: when J^T J is singular to
@@ -135,13 +142,23 @@ struct LgOptions {
   /// from the displacement given.
   double displacement_resolution = 0;
   int max_iterations = 50;  ///< Ceres iterations of the local stage
-  LgJacobian jacobian = LgJacobian::Cvodes;
+  /// Jacobian of the local stage's iterations.  ExactStep: autodiff through the exact step, the
+  /// derivative of the very residuals minimised, at ~1/150 of the time of a CVODES sensitivity
+  /// run (`bench_lg` BM_LgJacobian, 10,000 samples: 1.8 ms against 265 ms).  Cvodes: a CVODES
+  /// run at every iteration.
+  LgJacobian jacobian = LgJacobian::ExactStep;
+  /// At the optimum one CVODES sensitivity run is compared with the exact step's Jacobian (the
+  /// relative difference is in the convergence message; a warning above 1e-2) and is the
+  /// Jacobian of the covariance.
+  bool cvodes_check = true;
   /// CVODES settings for the Jacobian (sensitivities and log_parameters are forced on).
   CvodesOptions cvodes = lg_default_cvodes();
   bool covariance = true;  ///< standard errors and correlations
   /// The global stage computes each distinct (velocity, interval) pair's exact-step transition
-  /// once per run instead of once per sample (LuGre::Transition; the same numbers).  false steps
-  /// every sample, for checking.
+  /// once per run instead of once per sample (LuGre::Transition; the same numbers), or, when the
+  /// motions do not repeat on a record sampled at one interval, interpolates them from a table
+  /// over the speed (lugre_transition_table.hpp; the local stage and every reported figure use the
+  /// exact step).  false steps every sample exactly, for checking.
   bool memoise_steps = true;
 };
 
@@ -171,7 +188,10 @@ struct LgTimings {
   double global = 0;             ///< CRS2 and the BOBYQA polishes
   double local = 0;              ///< Ceres
   double report = 0;             ///< free run, covariance, warnings
-  int jacobian_evaluations = 0;  ///< of the local stage (CVODES runs with sensitivities)
+  int jacobian_evaluations = 0;  ///< of the local stage and of its CVODES check
+  /// How the global stage computed its transitions (LgOptions::memoise_steps): "shared" (once
+  /// per distinct motion, exact), "tabulated" (interpolated over the speed) or "exact".
+  std::string global_transitions = "exact";
 };
 
 struct LgResult {
