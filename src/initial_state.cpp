@@ -27,6 +27,19 @@ Eigen::VectorXd single_trajectory(std::span<const double> x, double threshold, d
   return out;
 }
 
+// The end of the prefix [0, end) over which an operator of this threshold depends on its initial
+// deflection: until the displacement has covered a range of 2 Delta it may not have saturated, and
+// a filter of `taps` taps carries that `taps` samples further (estimate_initial_deflections).
+std::size_t prefix_end(std::span<const double> x, double threshold, std::size_t taps) {
+  double lo = x[0], hi = x[0];
+  for (std::size_t t = 0; t < x.size(); ++t) {
+    lo = std::min(lo, x[t]);
+    hi = std::max(hi, x[t]);
+    if (hi - lo >= 2.0 * threshold) return std::min(x.size(), t + taps + 1);
+  }
+  return x.size();
+}
+
 Eigen::VectorXd filtered(const Eigen::VectorXd& delta, const Eigen::RowVectorXd& taps) {
   Eigen::VectorXd f = Eigen::VectorXd::Zero(delta.size());
   for (Eigen::Index j = 0; j < taps.size(); ++j)
@@ -247,18 +260,10 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
   // 2 max(Delta) every operator has saturated whatever its initial deflection, and from then on
   // (plus n samples of filter lag) the force no longer depends on d.  The rest of the record adds
   // a constant to the cost and is left out.
+  const std::size_t n_taps = static_cast<std::size_t>(filter.cols());
   {
-    const double span = 2.0 * *std::max_element(thresholds.begin(), thresholds.end());
-    double lo = x[0], hi = x[0];
-    std::size_t end = x.size();
-    for (std::size_t t = 0; t < x.size(); ++t) {
-      lo = std::min(lo, x[t]);
-      hi = std::max(hi, x[t]);
-      if (hi - lo >= span) {
-        end = std::min(x.size(), t + static_cast<std::size_t>(filter.cols()) + 1);
-        break;
-      }
-    }
+    const std::size_t end =
+        prefix_end(x, *std::max_element(thresholds.begin(), thresholds.end()), n_taps);
     x = x.first(end);
     target = target.first(end);
   }
@@ -272,16 +277,6 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
   // evaluation costs sum_i T_i instead of M times the longest prefix: on records where one
   // operator's threshold is near the travel (a linear spring) the others' prefixes are short.
   const Eigen::Index n_prefix = y.size();
-  const auto prefix_of = [&](double threshold) {
-    double lo = x[0], hi = x[0];
-    for (std::size_t t = 0; t < x.size(); ++t) {
-      lo = std::min(lo, x[t]);
-      hi = std::max(hi, x[t]);
-      if (hi - lo >= 2.0 * threshold)
-        return std::min(n_prefix, static_cast<Eigen::Index>(t) + filter.cols() + 1);
-    }
-    return n_prefix;
-  };
   std::vector<OneOperator> single;
   std::vector<Eigen::Index> own(m);
   Eigen::VectorXd fixed = Eigen::VectorXd::Zero(n_prefix);
@@ -289,7 +284,7 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
   for (std::size_t i = 0; i < m; ++i) {
     const Eigen::RowVectorXd taps = filter.row(static_cast<Eigen::Index>(i));
     active[i] = !taps.isZero();
-    own[i] = prefix_of(thresholds[i]);
+    own[i] = static_cast<Eigen::Index>(prefix_end(x, thresholds[i], n_taps));
     single.emplace_back(x.first(static_cast<std::size_t>(own[i])), thresholds[i], taps);
     if (active[i] && own[i] < n_prefix) {
       const Eigen::VectorXd after =
@@ -358,7 +353,7 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
           bool moved = false;
           for (Eigen::Index i = 0; i < mi; ++i) {
             const std::size_t iu = static_cast<std::size_t>(i);
-            if (filter.row(i).isZero()) continue;
+            if (!active[iu]) continue;
             // Beyond its prefix operator i's contribution does not depend on d_i: the step is
             // chosen, and compared, over the prefix.
             const Eigen::Index ti = own[iu];

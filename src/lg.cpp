@@ -34,6 +34,8 @@ constexpr double kStateBound = 1.5;                         // |u| <= 1.5, z0 = 
 constexpr double kHuge = 1e30;
 
 using Theta = std::array<double, kP>;
+// The layout of Ceres' Jacobian blocks (one row per residual).
+using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 double quantile(std::vector<double> v, double q) {
   FRICTION_ASSERT(!v.empty());
@@ -716,7 +718,6 @@ bool LgCostFunction::Evaluate(double const* const* parameters, double* residuals
   if (!finite_parameters(p) || !std::isfinite(parameters[1][0])) return false;
   const double z0 = parameters[1][0] * z_ref_;
   const auto& motions = motions_;
-  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   try {
     const bool want_j = jacobians && (jacobians[0] || jacobians[1]);
     if (want_j && jacobian_ == LgJacobian::Cvodes && memo_.parameters.size() == kP + 1 &&
@@ -968,7 +969,6 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
   // integrates).  Its Jacobian is then the covariance's.
   double cvodes_difference = -1;
   if (o.cvodes_check && o.jacobian != LgJacobian::Cvodes) {
-    using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
     RowMajor jc(static_cast<Eigen::Index>(n), kP), je(static_cast<Eigen::Index>(n), kP);
     std::vector<double> r(n), sc(n), se(n);
     const double* blocks[2] = {log_theta.data(), &u};
@@ -1065,7 +1065,6 @@ LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
     // The exact Jacobian (autodiff through the exact step) for the rank diagnosis.
     Eigen::MatrixXd jtj(kP, kP);
     {
-      using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
       RowMajor j(static_cast<Eigen::Index>(n), kP);
       std::vector<double> r(n);
       const double* blocks[2] = {lt.data(), &u_final};
