@@ -45,9 +45,16 @@ double chi2_999(std::size_t p) {
   return 26.12 + 1.8 * static_cast<double>(p - 8);
 }
 
+// The numbers a model's pieces fit: their parameters and, with a frictional lag, the lag's initial
+// offset, which the fit estimates on the record beside them (extension_fit.hpp,
+// extended_state_size) and which a lag candidate can spend on the record's first samples.
+std::size_t fitted_numbers(const ExtensionParameters<double>& ext) {
+  return ext.parameter_count() + (ext.frictional_lag ? 1 : 0);
+}
+
 std::size_t extra_parameters(const ExtensionParameters<double>& with,
                              const ExtensionParameters<double>& without) {
-  return with.parameter_count() - without.parameter_count();
+  return fitted_numbers(with) - fitted_numbers(without);
 }
 
 // What one more operator would drop the RSS by at a model with estimation RSS rss0: the
@@ -145,6 +152,7 @@ double lowest_sliding_speed(const Context& c, const ExtendedSlipFit& f) {
       rho.push_back(f.rho[i]);
     }
   if (base.size() == 0) base = f.base, rho = f.rho;
+  else if (f.rho.size() > f.base.size()) rho.push_back(f.rho[f.base.size()]);  // the lag's offset
   const ExtendedSlipRun run =
       run_extended_slip(base, f.ext, deflections_from_relative(base, rho, f.ext), c.est);
   std::vector<double> speeds;

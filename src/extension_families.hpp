@@ -33,6 +33,7 @@
 #include "friction/maxwell_slip.hpp"
 #include "friction/noise_colour.hpp"
 #include "friction/record.hpp"
+#include "friction/signals.hpp"
 
 #include "bounded_solver.hpp"
 #include "compressed_cost.hpp"
@@ -88,8 +89,9 @@ inline void threshold_box(Box& b, const Record& r, const std::vector<double>& th
 struct SlipFamily {
   MaxwellSlipParameters<double> p;
   bool free_base = false;  // block 0 starts with log k_i, log Delta_i
+  bool lag_state = false;  // block 1 ends with the lag's offset (extension_fit.hpp)
   std::size_t base_count() const { return free_base ? 2 * p.size() : 0; }
-  std::size_t state_count() const { return p.size(); }
+  std::size_t state_count() const { return p.size() + lag_state; }
   std::vector<double> base_theta() const {
     std::vector<double> t;
     for (double k : p.stiffness) t.push_back(std::log(k));
@@ -128,6 +130,7 @@ struct SlipFamily {
     for (std::size_t i = 0; i < m; ++i)
       d[i] = (s[i] + a) * (free_base ? exp(theta[m + i]) : T(p.threshold[i]));
     model.base().reset(std::span<const T>(d), model.asymmetry());
+    if (lag_state) model.set_initial_lag_offset(s[m]);
   }
   std::vector<double> state_bounds() const { return {-1.0, 1.0}; }
   // Report entries of block 0's base part, fitted as log k_i, log Delta_i; the values are those of
@@ -152,9 +155,10 @@ struct SlipFamily {
 struct DnlrxFamily {
   DnlrxParameters<double> p;
   bool free_base = false;
+  bool lag_state = false;  // block 1 ends with the lag's offset (extension_fit.hpp)
   std::size_t filter_count() const { return p.spring_filter.size() + p.input_filter.size(); }
   std::size_t base_count() const { return free_base ? filter_count() + p.size() : 0; }
-  std::size_t state_count() const { return p.size(); }
+  std::size_t state_count() const { return p.size() + lag_state; }
   std::vector<double> base_theta() const {
     std::vector<double> t(p.spring_filter);
     t.insert(t.end(), p.input_filter.begin(), p.input_filter.end());
@@ -208,6 +212,7 @@ struct DnlrxFamily {
     for (std::size_t i = 0; i < p.size(); ++i)
       d[i] = (s[i] + a) * (free_base ? exp(theta[nf + i]) : T(p.threshold[i]));
     model.base().reset(std::span<const T>(d), model.asymmetry());
+    if (lag_state) model.set_initial_lag_offset(s[p.size()]);
   }
   std::vector<double> state_bounds() const { return {-1.0, 1.0}; }
   // Report entries of block 0's base part: the filters (N/m) and log Delta_i.
@@ -235,9 +240,10 @@ struct DnlrxFamily {
 struct LuGreFamily {
   LuGreParameters<double> p;
   bool free_base = false;
+  bool lag_state = false;  // block 1 ends with the lag's offset (extension_fit.hpp)
   double zref() const { return std::max(p.coulomb, p.static_force) / p.stiffness; }
   std::size_t base_count() const { return free_base ? LuGreParameters<double>::kSize : 0; }
-  std::size_t state_count() const { return 1; }
+  std::size_t state_count() const { return 1 + lag_state; }
   std::vector<double> base_theta() const {
     const auto a = p.to_array();
     return std::vector<double>(a.begin(), a.end());
@@ -280,6 +286,7 @@ struct LuGreFamily {
   template <typename T>
   void set_state(Extended<LuGre<T>>& model, const T*, const T* s) const {
     model.base().reset(T(s[0] * zref()));
+    if (lag_state) model.set_initial_lag_offset(s[1]);
   }
   // estimate_lugre_initial_state scans the same range.
   std::vector<double> state_bounds() const { return {-1.5, 1.5}; }
@@ -293,6 +300,21 @@ struct LuGreFamily {
     return out;
   }
 };
+
+// The box of block 1: the base's states within the family's bounds, then the lag's offset
+// within lag_offset_bound of the record.
+template <class Family>
+Box state_box(const Family& family, const Record& r) {
+  const std::vector<double> sb = family.state_bounds();
+  const std::size_t ns = family.state_count() - (family.lag_state ? 1 : 0);
+  Box b{std::vector<double>(ns, sb[0]), std::vector<double>(ns, sb[1])};
+  if (family.lag_state) {
+    const double u = lag_offset_bound(r);
+    b.lower.push_back(-u);
+    b.upper.push_back(u);
+  }
+  return b;
+}
 
 // Residuals (F - Fhat) * scale of the extended model's free run on the record.
 template <class Family>
@@ -392,12 +414,13 @@ FamilyFit fit_family(const Record& r, const Family& family, const std::vector<do
   ceres::Problem problem;
   std::vector<double> state = std::move(state0);
   state.resize(family.state_count(), 0.0);
-  const std::vector<double> sb = family.state_bounds();
-  for (double& s : state) s = std::clamp(s, sb[0], sb[1]);
+  const Box sb = state_box(family, r);
+  for (std::size_t i = 0; i < state.size(); ++i)
+    state[i] = std::clamp(state[i], sb.lower[i], sb.upper[i]);
   problem.AddResidualBlock(new detail::CompressedCost(cost), nullptr, theta.data(), state.data());
   for (std::size_t i = 0; i < state.size(); ++i) {
-    problem.SetParameterLowerBound(state.data(), static_cast<int>(i), sb[0]);
-    problem.SetParameterUpperBound(state.data(), static_cast<int>(i), sb[1]);
+    problem.SetParameterLowerBound(state.data(), static_cast<int>(i), sb.lower[i]);
+    problem.SetParameterUpperBound(state.data(), static_cast<int>(i), sb.upper[i]);
   }
   std::vector<int> held = nb > 0 ? family.held(base_theta0) : std::vector<int>{};
   if (!empty) {
@@ -461,13 +484,15 @@ template <class Family>
 std::vector<double> estimate_family_state(const Record& r, const Family& family,
                                           const ExtensionParameters<double>& ext,
                                           const std::vector<double>& plain, double f0) {
-  const std::vector<double> sb = family.state_bounds();
-  std::vector<std::vector<double>> starts{plain, std::vector<double>(plain.size(), 0.0), plain};
+  const Box sb = state_box(family, r);
+  const std::size_t ns = family.state_count();
+  std::vector<std::vector<double>> starts{plain, std::vector<double>(ns, 0.0), plain};
   for (double& v : starts[2]) v *= 0.5;
   std::vector<double> best;
   double best_rss = std::numeric_limits<double>::infinity();
   for (auto s0 : starts) {
-    for (double& s : s0) s = std::clamp(s, sb[0], sb[1]);
+    s0.resize(ns, 0.0);  // a lag's offset the plain estimate lacks starts in step (0)
+    for (std::size_t i = 0; i < ns; ++i) s0[i] = std::clamp(s0[i], sb.lower[i], sb.upper[i]);
     const double rss0 = rss_of(r, family_run(r, family, ext, nullptr, s0));
     if (rss0 < best_rss) best_rss = rss0, best = s0;
     const FamilyFit f = fit_family(r, family, {}, ext, s0, /*fix_pieces=*/true, 30, f0);
@@ -522,6 +547,54 @@ struct FreeCovariance {
     return (null_directions.transpose() * gs).squaredNorm() < 1e-6 * gs.squaredNorm();
   }
 };
+
+// The displacement's own error.  The models are driven by the measured displacement, the force
+// came from the true one: an encoder's staircase moves a stiff operator by k q and a differentiated
+// staircase puts noise into every velocity and acceleration term, and the least-squares estimate
+// follows those errors (errors in the variables) where the force noise, which the sandwich
+// above measures, does not reach.  On the discovery study's records that was most of what the
+// intervals missed: without the encoder, eight of nine misses came within 1.7 standard errors
+// (README, "The discovery study's coverage").  Measured here the way a second measurement of the
+// same motion would show it: the record remeasured by its own sensor (signals.hpp,
+// remeasured_replica: requantised with a random phase and conditioned as the record was), the
+// model run again at the optimum, and the linearised response of the fit to the change of its
+// force, d theta = (J^T J)^+ J^T dF, in the scaled coordinates of covariance_at.  Its second
+// moment over kInputReplicas replicas is added to the covariance (the part of those errors the
+// residual already shows is counted twice: the intervals err on the wide side).  Replicas are
+// seeded by their index: the same record gives the same covariance.
+inline constexpr std::size_t kInputReplicas = 24;
+
+template <class Family>
+Eigen::MatrixXd input_error_covariance(const Record& r, const Family& family,
+                                       const ExtensionParameters<double>& pieces,
+                                       const std::vector<double>& theta,
+                                       const std::vector<double>& state, const Eigen::MatrixXd& Js,
+                                       const Eigen::MatrixXd& Hinv) {
+  const Eigen::Index p = Js.cols(), n = Js.rows();
+  Eigen::MatrixXd second = Eigen::MatrixXd::Zero(p, p);
+  const std::vector<double> f0 = family_run(r, family, pieces, theta.data(), state);
+  Record replica;
+  Eigen::VectorXd df(n);
+  std::size_t used = 0;
+  for (std::size_t j = 0; j < kInputReplicas; ++j) {
+    if (!remeasured_replica(r, 0x9e3779b97f4a7c15ULL * (j + 1), replica)) break;
+    std::vector<double> f;
+    try {
+      f = family_run(replica, family, pieces, theta.data(), state);
+    } catch (const InvalidParameter&) {
+      continue;
+    }
+    for (Eigen::Index k = 0; k < n; ++k)
+      df(k) = f[static_cast<std::size_t>(k)] - f0[static_cast<std::size_t>(k)];
+    if (!df.allFinite()) continue;
+    const Eigen::VectorXd g = Js.transpose() * df;
+    second.noalias() += g * g.transpose();
+    ++used;
+  }
+  if (used == 0) return second;
+  second /= static_cast<double>(used);
+  return Hinv * second * Hinv;
+}
 
 template <class Family>
 FreeCovariance covariance_at(const Record& r, const Family& family,
@@ -617,6 +690,7 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
   Eigen::MatrixXd scaled = sandwich_covariance(Hinv, gram.coloured(), s2);
   if (scores.blocks() >= kMinimumScoreBlocks)
     scaled = larger_variances(scaled, block_sandwich_covariance(Hinv, scores, n, rank));
+  scaled += input_error_covariance(r, family, pieces, theta, state, Js, Hinv);
   out.covariance = d.cwiseInverse().asDiagonal() * scaled * d.cwiseInverse().asDiagonal();
   out.scale = d;
   out.null_directions.resize(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(null.size()));

@@ -26,7 +26,7 @@ ExtendedSlipRun run_extended_slip(const MaxwellSlipParameters<double>& base,
                                   std::span<const double> initial, const Record& r) {
   const std::size_t n = r.size();
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(base), ext, 2);
-  model.base().reset(initial, model.asymmetry());
+  set_extended_slip_state(model, initial);
   const double asymmetry = ext.asymmetry ? ext.asymmetry->asymmetry : 0.0;
   ExtendedSlipRun out;
   out.force.resize(n);
@@ -49,7 +49,8 @@ ExtendedSlipRun run_extended_slip(const MaxwellSlipParameters<double>& base,
 // ---------------------------------------------------------------------------------------------
 // The cost: residuals of the extended model's free run, parameters in two blocks:
 //   theta = [log k (M), log Delta (M), extension parameters in for_each_parameter order]
-//   rho   = relative initial deflections (M), in [-1, 1]
+//   rho   = relative initial deflections (M), in [-1, 1], then the lag's offset u [m/s] with a
+//           frictional-lag piece (extended_state_size)
 // The extension template fixes which pieces are on and the reference force F0.
 
 namespace {
@@ -82,6 +83,7 @@ struct ExtendedCost {
       const T a = model.extensions().asymmetry ? model.extensions().asymmetry->asymmetry : T(0);
       for (std::size_t i = 0; i < m; ++i) d[i] = (p[1][i] + a) * exp(p[0][m + i]);
       model.base().reset(std::span<const T>(d), model.asymmetry());
+      if (pieces.frictional_lag) model.set_initial_lag_offset(p[1][m]);
       extended_residuals(model, *record, scale, residual, windows);
     } catch (const InvalidParameter&) {
       return false;  // outside the domain: Ceres rejects the step
@@ -113,7 +115,7 @@ class StructuredSlipCost final : public ceres::CostFunction {
  public:
   explicit StructuredSlipCost(ExtendedCost* functor) : functor_(functor), whole_(functor) {
     whole_.AddParameterBlock(static_cast<int>(2 * functor->operators + pieces()));
-    whole_.AddParameterBlock(static_cast<int>(functor->operators));
+    whole_.AddParameterBlock(static_cast<int>(functor->operators + lag()));
     whole_.SetNumResiduals(static_cast<int>(functor->record->size()));
     *mutable_parameter_block_sizes() = whole_.parameter_block_sizes();
     set_num_residuals(whole_.num_residuals());
@@ -122,7 +124,7 @@ class StructuredSlipCost final : public ceres::CostFunction {
   bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
     if (!jacobians || !structured()) return whole_.Evaluate(p, residuals, jacobians);
     if (!(*functor_)(p, residuals)) return false;
-    const std::size_t e = pieces();
+    const std::size_t e = pieces() + lag();
     if (e + 2 <= 4) return jacobian<4, 4>(p, jacobians);
     if (e <= 4) return jacobian<4, 8>(p, jacobians);
     if (e + 2 <= 8) return jacobian<8, 8>(p, jacobians);
@@ -133,7 +135,9 @@ class StructuredSlipCost final : public ceres::CostFunction {
   const ceres::CostFunction& whole_model() const { return whole_; }
 
   /// Whether Evaluate takes the structured path (see above).
-  bool structured() const { return functor_->pieces.reference_force > 0 && pieces() + 2 <= 16; }
+  bool structured() const {
+    return functor_->pieces.reference_force > 0 && pieces() + lag() + 2 <= 16;
+  }
 
  private:
   std::size_t pieces() const {
@@ -141,9 +145,12 @@ class StructuredSlipCost final : public ceres::CostFunction {
     functor_->pieces.for_each_parameter([&](Effect, std::string_view, const double&) { ++e; });
     return e;
   }
+  // 1 with the lag's initial offset in block 1 (after the M deflections), else 0.
+  std::size_t lag() const { return functor_->pieces.frictional_lag ? 1 : 0; }
 
-  // NF lanes for the pieces' pass (>= E), NO for an operator's (>= E + 2: its log Delta and rho;
-  // its log k enters linearly and is differentiated by hand).
+  // NF lanes for the pieces' pass (>= E, plus the lag's offset u when there is one: it is felt
+  // only through the pieces), NO for an operator's (>= those + 2: its log Delta and rho; its log k
+  // enters linearly and is differentiated by hand).
   template <int NF, int NO>
   bool jacobian(double const* const* p, double** jacobians) const {
     static_assert(NO >= NF, "an operator's Jets carry the pieces' lanes");
@@ -152,8 +159,8 @@ class StructuredSlipCost final : public ceres::CostFunction {
     using std::exp;
     const ExtendedCost& f = *functor_;
     const Record& r = *f.record;
-    const std::size_t m = f.operators, n = r.size(), e = pieces();
-    const std::size_t cols = 2 * m + e;
+    const std::size_t m = f.operators, n = r.size(), e = pieces(), l = lag();
+    const std::size_t cols = 2 * m + e, states = m + l;
     ExtensionParameters<JF> ext = f.pieces.template cast<JF>([](double v) { return JF(v); });
     std::size_t j = 0;
     ext.for_each_parameter([&](Effect, std::string_view, JF& v) {
@@ -179,6 +186,7 @@ class StructuredSlipCost final : public ceres::CostFunction {
       silent.threshold = {JF(1)};
       Extended<MaxwellSlip<JF>> pieces_only(MaxwellSlip<JF>(std::move(silent), true),
                                             std::move(ext), 2);
+      if (l) pieces_only.set_initial_lag_offset(JF(p[1][m], static_cast<int>(e)));
       const JF af = pieces_only.asymmetry();
       a = lift(af);
       for (std::size_t k = 0; k < n; ++k) x[k] = JF(r.displacement[k]);
@@ -193,10 +201,11 @@ class StructuredSlipCost final : public ceres::CostFunction {
             down[k] = lift(level * (JF(1) - af));
             if (jt)
               for (std::size_t q = 0; q < e; ++q) jt[k * cols + 2 * m + q] = -f.scale * added.v[q];
+            if (jr && l) jr[k * states + m] = -f.scale * added.v[e];
           },
           std::span<const double>(r.measured_displacement));
       // Pass 2: operator by operator (eqs. 4-5 of maxwell_slip.hpp, one operator).
-      const int own = static_cast<int>(e);
+      const int own = static_cast<int>(e + l);
       for (std::size_t i = 0; i < m; ++i) {
         const double k_i = exp(p[0][i]);
         const JO limit = exp(JO(p[0][m + i], own));
@@ -212,7 +221,10 @@ class StructuredSlipCost final : public ceres::CostFunction {
             row[i] = g * delta.a;  // d(k delta) / d log k = k delta
             row[m + i] = g * delta.v[own];
           }
-          if (jr) jr[k * m + i] = g * delta.v[own + 1];
+          if (jr) {
+            jr[k * states + i] = g * delta.v[own + 1];
+            if (l) jr[k * states + m] += g * delta.v[e];
+          }
         }
       }
     } catch (const InvalidParameter&) {
@@ -233,8 +245,9 @@ ExtendedSlipJacobian extended_slip_jacobian(const Record& r,
                                             const ExtensionParameters<double>& ext,
                                             bool whole_model) {
   const std::size_t m = base.size(), n = r.size();
-  FRICTION_CHECK(rho.size() == m, "extended_slip_jacobian: ", rho.size(), " initial states for ", m,
-                 " operators");
+  const std::size_t states = extended_state_size(m, ext);
+  FRICTION_CHECK(rho.size() == states, "extended_slip_jacobian: ", rho.size(),
+                 " initial states for ", states, " (", m, " operators)");
   std::vector<double> theta;
   for (double k : base.stiffness) theta.push_back(std::log(k));
   for (double d : base.threshold) theta.push_back(std::log(d));
@@ -246,7 +259,7 @@ ExtendedSlipJacobian extended_slip_jacobian(const Record& r,
   out.structured = !whole_model && cost.structured();
   out.residual.resize(static_cast<Eigen::Index>(n));
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jt(n, theta.size()),
-      jr(n, m);
+      jr(n, states);
   const double* p[] = {theta.data(), rho.data()};
   double* j[] = {jt.data(), jr.data()};
   out.ok = whole_model ? cost.whole_model().Evaluate(p, out.residual.data(), j)
@@ -281,17 +294,23 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
     names.emplace_back(e, std::string(name));
   });
   std::vector<double> rho(rho0);
-  rho.resize(m, 0.0);
-  for (double& v : rho) v = std::clamp(v, -1.0, 1.0);
+  const std::size_t states = extended_state_size(m, ext0);
+  rho.resize(states, 0.0);
+  const double lag_bound = lag_offset_bound(r);
+  for (std::size_t i = 0; i < states; ++i) {
+    const double b = i < m ? 1.0 : lag_bound;
+    rho[i] = std::clamp(rho[i], -b, b);
+  }
 
   double rms = std::sqrt(sum_of_squares(r.force) / static_cast<double>(r.size()));
   auto* cost = new StructuredSlipCost(
       new ExtendedCost{&r, m, ext0, rms > 0 ? 1.0 / rms : 1.0, record_derivative_windows(r)});
   ceres::Problem problem;
   problem.AddResidualBlock(new detail::CompressedCost(cost), nullptr, theta.data(), rho.data());
-  for (std::size_t i = 0; i < m; ++i) {
-    problem.SetParameterLowerBound(rho.data(), static_cast<int>(i), -1.0);
-    problem.SetParameterUpperBound(rho.data(), static_cast<int>(i), 1.0);
+  for (std::size_t i = 0; i < states; ++i) {
+    const double b = i < m ? 1.0 : lag_bound;
+    problem.SetParameterLowerBound(rho.data(), static_cast<int>(i), -b);
+    problem.SetParameterUpperBound(rho.data(), static_cast<int>(i), b);
   }
   const double duration = std::max(r.time.back() - r.time.front(), 1e-12);
   double vmax = 0;
@@ -386,6 +405,15 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   return out;
 }
 
+double lag_offset_bound(const Record& r) {
+  double vmax = 0;
+  for (std::size_t k = 1; k < r.size(); ++k) {
+    const double dt = r.time[k] - r.time[k - 1];
+    if (dt > 0) vmax = std::max(vmax, std::abs(r.displacement[k] - r.displacement[k - 1]) / dt);
+  }
+  return std::max(2.0 * vmax, 1e-12);
+}
+
 double own_reference_ratio(const ExtensionParameters<double>& ext, double own_f0) {
   return ext.reference_force > 0 ? own_f0 / ext.reference_force : 1.0;
 }
@@ -407,6 +435,7 @@ std::vector<double> deflections_from_relative(const MaxwellSlipParameters<double
   const double a = ext.asymmetry ? ext.asymmetry->asymmetry : 0.0;
   std::vector<double> d(base.size());
   for (std::size_t i = 0; i < base.size(); ++i) d[i] = (rho[i] + a) * base.threshold[i];
+  if (ext.frictional_lag) d.push_back(rho.size() > base.size() ? rho[base.size()] : 0.0);
   return d;
 }
 
@@ -434,7 +463,7 @@ std::vector<double> carried_state(const Record& r, const MaxwellSlipParameters<d
                                   const ExtensionParameters<double>& to_ext,
                                   const DerivativeWindows* windows) {
   const std::size_t m = to_base.size();
-  FRICTION_CHECK(from_base.size() == m && rho.size() == m, "carried_state: ", rho.size(),
+  FRICTION_CHECK(from_base.size() == m && rho.size() >= m, "carried_state: ", rho.size(),
                  " states of ", from_base.size(), " operators for ", m);
   const double from_level = first_level(from_base, from_ext, r, windows);
   const double to_level = first_level(to_base, to_ext, r, windows);
@@ -445,6 +474,9 @@ std::vector<double> carried_state(const Record& r, const MaxwellSlipParameters<d
     const double d = (rho[i] + a_from) * from_level * from_base.threshold[i];
     out[i] = std::clamp(d / (to_level * to_base.threshold[i]) - a_to, -1.0, 1.0);
   }
+  // The lag's offset carries over when both models have the lag (else it starts in step).
+  if (to_ext.frictional_lag)
+    out.push_back(from_ext.frictional_lag && rho.size() > m ? rho[m] : 0.0);
   return out;
 }
 
@@ -478,6 +510,7 @@ std::vector<double> plain_relative_state(const MaxwellSlipParameters<double>& ba
   std::vector<double> rho(base.size());
   for (std::size_t i = 0; i < base.size(); ++i)
     rho[i] = std::clamp(d[i] / at_start.threshold[i], -1.0, 1.0);
+  if (ext.frictional_lag) rho.push_back(0.0);  // in step with the motion
   return rho;
 }
 

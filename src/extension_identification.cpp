@@ -247,7 +247,7 @@ ExtensionIdentification identify_extensions(const AnyModel& base, const Record& 
   res.simulated = run.simulated;
   res.initial_values = run.initial;
   res.estimation = compute_errors(r.force, res.simulated);
-  res.initial_state = {{"kind", "estimated"}, {"values", run.initial}, {"unit", "m"}};
+  res.initial_state = run.to_json();
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   return res;
 }
@@ -261,29 +261,33 @@ ExtendedFreeRun free_run_extended(const AnyModel& model, const Record& r) {
         const auto& p = ext.base().parameters();
         const ExtensionParameters<double>& pieces = ext.extensions();
         if constexpr (std::is_same_v<B, MaxwellSlip<double>>) {
-          const SlipFamily fam{p, false};
+          const SlipFamily fam{p, false, pieces.frictional_lag.has_value()};
           const std::vector<double> s = estimate_family_state(
               r, fam, pieces, plain_relative_state(p, pieces, r), value_of(ext.reference_force()));
           out.simulated = family_run(r, fam, pieces, nullptr, s);
+          if (fam.lag_state) out.lag_offset = s.back();  // the last state entry (set_state)
           // The deflections at the first sample: deflections_from_relative gives them at level 1,
           // and the model's first step scales them by its level (extensions.hpp, Initial state).
           out.initial = deflections_from_relative(p, s, pieces);
+          out.initial.resize(p.size());  // the lag's offset, if any, is reported apart
           const double level = first_level(p, pieces, r);
           for (double& d : out.initial) d *= level;
         } else if constexpr (std::is_same_v<B, Dnlrx<double>>) {
-          const DnlrxFamily fam{p, false};
+          const DnlrxFamily fam{p, false, pieces.frictional_lag.has_value()};
           const DnlrxFreeRun plain = free_run_dnlrx(p, r.time, r.displacement, r.force);
           const std::vector<double> s = estimate_family_state(
               r, fam, pieces, state_from(plain.initial_deflections, p.threshold),
               value_of(ext.reference_force()));
           out.simulated = family_run(r, fam, pieces, nullptr, s);
-          for (std::size_t i = 0; i < s.size(); ++i) out.initial.push_back(s[i] * p.threshold[i]);
+          if (fam.lag_state) out.lag_offset = s.back();  // the last state entry (set_state)
+          for (std::size_t i = 0; i < p.size(); ++i) out.initial.push_back(s[i] * p.threshold[i]);
         } else if constexpr (std::is_same_v<B, LuGre<double>>) {
-          const LuGreFamily fam{p, false};
+          const LuGreFamily fam{p, false, pieces.frictional_lag.has_value()};
           const double z0 = estimate_lugre_initial_state(p, r.time, r.displacement, r.force);
           const std::vector<double> s = estimate_family_state(r, fam, pieces, {z0 / fam.zref()},
                                                               value_of(ext.reference_force()));
           out.simulated = family_run(r, fam, pieces, nullptr, s);
+          if (fam.lag_state) out.lag_offset = s.back();  // the last state entry (set_state)
           out.initial = {s[0] * fam.zref()};
         } else {
           throw InvalidParameter("free_run_extended: no initial-state estimator for " +
@@ -292,6 +296,12 @@ ExtendedFreeRun free_run_extended(const AnyModel& model, const Record& r) {
       },
       model.variant());
   return out;
+}
+
+Json ExtendedFreeRun::to_json() const {
+  Json j = {{"kind", "estimated"}, {"values", initial}, {"unit", "m"}};
+  if (lag_offset) j["lag_offset"] = {{"value", *lag_offset}, {"unit", "m/s"}};
+  return j;
 }
 
 Json pieces_to_json(const std::vector<ExtensionEstimate>& estimates) {

@@ -46,6 +46,8 @@ void identify_held(ExtensionIdentification& res, Family fam, const Record& r,
                    const std::vector<double>& start_state, const std::vector<Effect>& effects,
                    const ExtensionFitOptions& o) {
   using Base = std::decay_t<decltype(fam.template make<double>(nullptr, {}).base())>;
+  fam.lag_state =
+      std::find(effects.begin(), effects.end(), Effect::frictional_lag) != effects.end();
   const double f0 = own_f0(fam.p);
   FRICTION_CHECK(f0 > 0, "identify: the base's sliding force ", f0,
                  " N is not positive: its level cannot carry extension pieces");
@@ -81,10 +83,10 @@ void identify_held(ExtensionIdentification& res, Family fam, const Record& r,
 
   // Standard errors and intervals of the free parameters at the optimum.
   const std::size_t nb = fam.base_count();
-  const std::vector<double> sb = fam.state_bounds();
+  const Box sb = state_box(fam, r);
   std::vector<char> free_state(f.state.size(), 1);
   for (std::size_t i = 0; i < f.state.size(); ++i)
-    if (at_bound(f.state[i], sb[0]) || at_bound(f.state[i], sb[1])) free_state[i] = 0;
+    if (at_bound(f.state[i], sb.lower[i]) || at_bound(f.state[i], sb.upper[i])) free_state[i] = 0;
   const auto new_base = nb > 0 ? fam.parameters(f.base_theta.data()) : fam.p;
   const double f0_own = own_f0(new_base);
   const JointReport rep = report_joint_fit(r, fam, f.base_theta, f.ext, f.state, free_state, f0,

@@ -156,8 +156,8 @@ struct PiecesAlongRun {
 
 PiecesAlongRun pieces_along_run(const Record& r, const ExtendedSlipFit& cur) {
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(cur.base), cur.ext, 2);
-  model.base().reset(std::span<const double>(deflections_from_relative(cur.base, cur.rho, cur.ext)),
-                     model.asymmetry());
+  set_extended_slip_state(model,
+                          std::span<const double>(deflections_from_relative(cur.base, cur.rho, cur.ext)));
   PiecesAlongRun run{std::vector<double>(r.size()), std::vector<double>(r.size())};
   for_each_extended_step(
       model, std::span<const double>(r.time), std::span<const double>(r.displacement),

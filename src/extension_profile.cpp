@@ -49,7 +49,7 @@ void fill_columns(const Record& r, const std::vector<double>& thresholds,
   unit.stiffness.assign(m, 1.0);
   unit.threshold = thresholds;
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(unit), ext, 2);
-  model.base().reset(deflections_from_relative(unit, rho, ext), model.asymmetry());
+  set_extended_slip_state(model, std::span<const double>(deflections_from_relative(unit, rho, ext)));
   // The deflections of the model the state comes from (relative to its first level), whatever
   // level the profiled piece starts the record with: every grid point starts from the same
   // operators (extensions.hpp, Initial state).

@@ -248,7 +248,7 @@ Validation validate_model(const AnyModel& model, const Record& r) {
           // Pieces on a base with a state estimator: the state is estimated through them.
           ExtendedFreeRun run = free_run_extended(model, r);
           v.simulated = std::move(run.simulated);
-          v.initial_state_values = values_json(run.initial, "m");
+          v.initial_state_values = run.to_json();
           v.initial_state = "estimated";
           return;
         }

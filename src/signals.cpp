@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <random>
 #include <sstream>
 
 #include <Eigen/Dense>
@@ -373,21 +374,59 @@ const Conditioning& condition_record(Record& record, const ConditioningOptions& 
   c.displacement_quantised = res.quantum.has_value();
   // The displacement the models see (sample_derivatives.hpp): the local polynomial's value when
   // the rule's window is longer than three samples (a quadratic through three passes them).
-  if (n >= 16) {
-    const DerivativeWindows w = choose_derivative_windows(record.time, record.displacement);
-    c.displacement_half_width = w.displacement_half_width;
-    c.displacement_degree = w.displacement_degree;
-    if (w.displacement_half_width > 1 || w.displacement_degree != 2) {
-      std::vector<double> estimate(n);
-      apply_local_displacement<double>(record.time, record.displacement, w, estimate);
-      record.measured_displacement = std::move(record.displacement);
-      record.displacement = std::move(estimate);
-    }
+  DerivativeWindows w;
+  std::vector<double> estimate = displacement_the_models_see(record.time, record.displacement, &w);
+  c.displacement_half_width = w.displacement_half_width;
+  c.displacement_degree = w.displacement_degree;
+  if (!estimate.empty()) {
+    record.measured_displacement = std::move(record.displacement);
+    record.displacement = std::move(estimate);
   }
 
   if (c.irregular) c.warnings.push_back(describe_sampling(sampling, n - 1));
   record.conditioning = std::move(c);
   return record.conditioning;
+}
+
+std::vector<double> displacement_the_models_see(std::span<const double> time,
+                                                std::span<const double> measured,
+                                                DerivativeWindows* windows) {
+  const std::size_t n = measured.size();
+  if (n < 16) return {};
+  const DerivativeWindows w = choose_derivative_windows(time, measured);
+  if (windows) *windows = w;
+  // A quadratic through three samples passes them: the measured value itself.
+  if (w.displacement_half_width <= 1 && w.displacement_degree == 2) return {};
+  std::vector<double> estimate(n);
+  apply_local_displacement<double>(time, measured, w, estimate);
+  return estimate;
+}
+
+bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica) {
+  const Resolution res = estimate_displacement_resolution(record.measured());
+  if (!res.quantum && !(res.noise > 0)) return false;
+  std::mt19937_64 rng(seed);
+  replica.time = record.time;
+  replica.force = record.force;
+  replica.normal = record.normal;
+  std::vector<double> x(record.displacement);
+  if (res.quantum) {
+    const double q = *res.quantum;
+    const double u = std::uniform_real_distribution<double>(0.0, q)(rng);
+    for (double& v : x) v = q * std::round((v + u) / q) - u;
+  } else {
+    std::normal_distribution<double> noise(0.0, res.noise);
+    for (double& v : x) v += noise(rng);
+  }
+  std::vector<double> estimate = displacement_the_models_see(replica.time, x);
+  if (estimate.empty()) {
+    replica.displacement = std::move(x);
+    replica.measured_displacement.clear();
+  } else {
+    replica.measured_displacement = std::move(x);
+    replica.displacement = std::move(estimate);
+  }
+  return true;
 }
 
 }  // namespace friction

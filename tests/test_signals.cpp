@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <numbers>
 #include <random>
@@ -294,6 +295,56 @@ TEST(Conditioning, RecordsResolutionAndNoise) {
   EXPECT_FALSE(c.displacement_quantised);
   EXPECT_GT(c.displacement_resolution, 0.0);
   EXPECT_LT(c.displacement_resolution, 1e-8);  // a smooth noiseless sine: curvature per sample
+}
+
+// A replica measured again by the record's own encoder errs as the record does: the exact motion
+// is known here, so the record's own error (its conditioned displacement against the motion) is
+// the yardstick for the replicas' differences from the record; the raw staircase's error,
+// q / sqrt(12), is the wrong answer a replica without the conditioning would give.
+TEST(Conditioning, ARemeasuredReplicaErrsAsTheRecordsOwnEncoder) {
+  const double q = 5e-8, phase0 = 0.37 * q;
+  Record r;
+  std::vector<double> exact;
+  for (int k = 0; k < 4000; ++k) {
+    const double t = 1e-3 * k;
+    r.time.push_back(t);
+    exact.push_back(1e-5 * std::sin(2 * kPi * 0.8 * t) + 3e-6 * std::sin(2 * kPi * 3.1 * t + 1.0));
+    r.displacement.push_back(q * std::round((exact.back() + phase0) / q) - phase0);
+  }
+  r.force = maxwell_slip_force(r.time, exact);
+  friction::condition_record(r);
+  ASSERT_TRUE(r.conditioning.displacement_quantised);
+  ASSERT_FALSE(r.measured_displacement.empty()) << "the rule kept the staircase";
+  auto rms = [](const std::vector<double>& a, const std::vector<double>& b) {
+    double s = 0;
+    for (std::size_t k = 0; k < a.size(); ++k) s += (a[k] - b[k]) * (a[k] - b[k]);
+    return std::sqrt(s / static_cast<double>(a.size()));
+  };
+  const double own = rms(r.displacement, exact);
+  ASSERT_LT(own, 0.7 * q / std::sqrt(12.0)) << "the conditioning did not reduce the error";
+  Record a, b, c;
+  ASSERT_TRUE(friction::remeasured_replica(r, 1, a));
+  ASSERT_TRUE(friction::remeasured_replica(r, 1, b));
+  ASSERT_TRUE(friction::remeasured_replica(r, 2, c));
+  EXPECT_EQ(a.displacement, b.displacement);  // the seed picks the replica
+  EXPECT_NE(a.displacement, c.displacement);
+  EXPECT_EQ(a.force, r.force);
+  EXPECT_EQ(a.time, r.time);
+  // Quantised by the record's step: every step of the remeasured signal a multiple of q.
+  ASSERT_EQ(a.measured_displacement.size(), r.size());
+  for (std::size_t k = 1; k < r.size(); ++k) {
+    const double steps = (a.measured_displacement[k] - a.measured_displacement[k - 1]) / q;
+    ASSERT_NEAR(steps, std::round(steps), 1e-6) << k;
+  }
+  // The replicas' error about the record has the size of the record's own error (each is one
+  // draw of the same process: within a factor of two), not the staircase's.
+  for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+    Record rep;
+    ASSERT_TRUE(friction::remeasured_replica(r, seed, rep));
+    const double e = rms(rep.displacement, r.displacement);
+    EXPECT_GT(e, 0.5 * own) << seed;
+    EXPECT_LT(e, 2.0 * own) << seed;
+  }
 }
 
 // ------------------------------------------------------------------ the real tribometer record

@@ -5,7 +5,8 @@
 // Parameters.  theta = [log k_i (M), log Delta_i (M), the pieces' parameters in
 // ExtensionParameters::for_each_parameter order], and the relative initial deflections
 // rho_i = delta_i(0) / Delta_i in [-1, 1], estimated from the same record (methods.md 2: the
-// initial state is unknown on every record and is estimated the same way for every method).
+// initial state is unknown on every record and is estimated the same way for every method), and
+// with a frictional-lag piece the lag's initial offset after them (extended_state_size).
 // Stiffness and threshold are log-parametrised, which keeps them positive without bounds; the
 // thresholds are boxed inside [q, L] (displacement resolution, largest travel) as NLR keeps them,
 // because an operator beyond the travel with a large initial deflection acts as a free offset.
@@ -33,6 +34,21 @@
 #include "friction/record.hpp"
 
 namespace friction {
+
+/// Entries of the initial state of an extended Maxwell Slip model on M operators: the relative
+/// deflections rho_i, then, with a frictional-lag piece, the lag's offset u = v_l(t_0) - v(t_0)
+/// [m/s] (extensions.hpp).  The lag's memory of the motion before the record is as unknown as the
+/// operators' deflections: started in step with the motion (u = 0), a record cut from longer
+/// motion shows the transient sigma2 u exp(-t/tau), which a fit otherwise absorbs by bending
+/// sigma2 and tau (on the discovery study's told records, 2.6 to 77 times the noise RSS).
+inline std::size_t extended_state_size(std::size_t operators,
+                                       const ExtensionParameters<double>& ext) {
+  return operators + (ext.frictional_lag ? 1 : 0);
+}
+
+/// The box |u| <= 2 v_max of the lag's offset on a record (v_max its largest interval speed):
+/// v_l and v both lie within the speeds of the motion.
+double lag_offset_bound(const Record& r);
 
 /// One fitted parameter of a piece, in the model's own F0 (covariance_report.hpp).
 struct ExtensionEstimate {
@@ -72,6 +88,16 @@ struct ExtendedSlipRun {
   std::vector<double> velocity, acceleration;  // of the (shifted) record
 };
 
+/// Sets an extended Maxwell Slip model's initial state from deflections_from_relative's vector:
+/// the M deflections (at level 1), then the lag's offset when there is one.
+template <typename T>
+void set_extended_slip_state(Extended<MaxwellSlip<T>>& model, std::span<const T> initial) {
+  const std::size_t m = model.base().parameters().size();
+  model.base().reset(initial.first(std::min(initial.size(), m)), model.asymmetry());
+  if (initial.size() > m) model.set_initial_lag_offset(initial[m]);
+}
+
+/// `initial`: deflections_from_relative's M deflections, then the lag's offset when there is one.
 ExtendedSlipRun run_extended_slip(const MaxwellSlipParameters<double>& base,
                                   const ExtensionParameters<double>& ext,
                                   std::span<const double> initial, const Record& r);
@@ -113,7 +139,7 @@ ExtensionBounds extension_parameter_bounds(Effect e, std::string_view name, doub
 /// Result of fit_extended_slip: parameters, relative initial deflections and the RSS [N^2].
 struct ExtendedSlipFit {
   MaxwellSlipParameters<double> base;
-  std::vector<double> rho;
+  std::vector<double> rho;  ///< extended_state_size entries: M deflections, then the lag's offset
   ExtensionParameters<double> ext;
   double rss = 0;
   bool ok = false;
@@ -167,7 +193,8 @@ struct ExtendedSlipReport {
 ExtendedSlipReport report_extended_slip(const Record& r, const ExtendedSlipFit& fit);
 
 /// delta_i(0) = (rho_i + a) Delta_i: rho_i in [-1, 1] relative to the centre a Delta_i of operator
-/// i's box, a the asymmetry of `ext` (0 without one; extensions.hpp).  These are deflections at
+/// i's box, a the asymmetry of `ext` (0 without one; extensions.hpp); with a frictional-lag piece
+/// the lag's offset u follows as entry M (run_extended_slip's `initial` takes it there).  These are deflections at
 /// level 1: the model's first step scales them by its level (extensions.hpp, Initial state), so
 /// the deflections at the record's first sample are first_level times these.
 std::vector<double> deflections_from_relative(const MaxwellSlipParameters<double>& base,

@@ -129,6 +129,7 @@
 #include <Eigen/Core>
 
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -222,6 +223,11 @@ ExtensionIdentification identify_extensions(const AnyModel& base, const Record& 
 struct ExtendedFreeRun {
   std::vector<double> simulated;
   std::vector<double> initial;  ///< deflections [m] or z0 [m]
+  /// With a frictional-lag piece: its estimated offset u = v_l(t_0) - v(t_0) [m/s]
+  /// (extension_fit.hpp, extended_state_size).
+  std::optional<double> lag_offset;
+  /// {"kind": "estimated", "values": initial, "unit": "m"}, and "lag_offset" [m/s] with a lag.
+  Json to_json() const;
 };
 ExtendedFreeRun free_run_extended(const AnyModel& model, const Record& record);
 

@@ -32,8 +32,10 @@
 //                        e = exp(-dt/tau)): v_l,k = v_k - s tau + (v_l,k-1 - v_{k-1} + s tau) e,
 //                        and for the causal step's constant interval velocity
 //                        v_l,k = v_k + (v_l,k-1 - v_k) e.  The lag starts at
-//                        the first sample's velocity (as if that motion had been going on:
-//                        records are cut from longer motion; initial states are estimated)
+//                        the first sample's velocity plus an offset u = v_l(t_0) - v(t_0) (0
+//                        unless set_initial_lag_offset sets it): a record cut from longer motion
+//                        starts with the lag's memory of that motion, which a fit estimates with
+//                        the other initial states (extension_fit.hpp)
 //   asymmetry            slip limits (1 + a) in +x and (1 - a) in -x (Motion::asymmetry),
 //                        `asymmetry` a = (F+ - F-)/(F+ + F-) in (-1, 1)
 //   offset               + c                                             `offset` [N]
@@ -437,11 +439,18 @@ class Extended {
     fixed_initial_level_ = true;
   }
 
+  /// The frictional-lag piece's initial state: v_l at the first sample is that sample's velocity
+  /// plus `offset` [m/s] (header: frictional-lag).  Why an offset rather than v_l itself: 0 is the
+  /// lag in step with the motion, the natural start of an estimate, whatever the record's speed.
+  /// Until the next reset.
+  void set_initial_lag_offset(const T& offset) noexcept { initial_lag_offset_ = offset; }
+
   /// Extension states only (lag, direction, delay ring, accumulated x and t): keeps a base state
   /// set through base().
   void reset_extension_state() {
     lagged_velocity_ = T(0);
     lag_started_ = false;
+    initial_lag_offset_ = T(0);
     previous_piece_velocity_ = T(0);
     level_ = T(1);
     first_step_ = true;
@@ -505,8 +514,11 @@ class Extended {
     T v = c.piece_velocity;
     if (p_.frictional_lag) {
       const T& tau = p_.frictional_lag->lag_time;
-      if (!lag_started_ || value_of(tau) <= 0.0) {
+      if (value_of(tau) <= 0.0) {
         lagged_velocity_ = v;
+        lag_started_ = true;
+      } else if (!lag_started_) {
+        lagged_velocity_ = v + initial_lag_offset_;
         lag_started_ = true;
       } else if (dt > 0.0 && c.piece_velocity_at_instant) {
         const T slope_tau = (v - previous_piece_velocity_) * tau / c.dt;
@@ -597,6 +609,7 @@ class Extended {
   // Extension states.
   T lagged_velocity_{0};
   bool lag_started_ = false;
+  T initial_lag_offset_{0};
   T previous_piece_velocity_{0};
   T level_{1};
   bool first_step_ = true;            // the next step scales the base's state by its level

@@ -55,6 +55,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <span>
 #include <string>
@@ -62,6 +63,7 @@
 #include <vector>
 
 #include "friction/record.hpp"
+#include "friction/sample_derivatives.hpp"
 
 namespace friction {
 
@@ -115,6 +117,26 @@ struct SlidingForceRegression {
 SlidingForceRegression sliding_force_regression(std::span<const double> time,
                                                 std::span<const double> displacement,
                                                 std::span<const double> force);
+
+/// The displacement the models see, from a measured one (condition_record's rule,
+/// sample_derivatives.hpp): the local polynomial's value at each t_k when the record's window rule
+/// gives a window longer than three samples; empty when the measured displacement is used as it is
+/// (then, and below 16 samples, `windows` is left unchanged).
+std::vector<double> displacement_the_models_see(std::span<const double> time,
+                                                std::span<const double> measured,
+                                                DerivativeWindows* windows = nullptr);
+
+/// A replica of `record` measured again by its own displacement sensor: the displacement the models
+/// see, `r.displacement` (the best estimate of the motion there is), quantised again by the
+/// record's encoder step with a random phase (q round((x + u)/q) - u, u uniform in [0, q)), or,
+/// without a quantum, with white noise of the record's displacement noise added; then conditioned
+/// as condition_record conditions (displacement_the_models_see).  Time, force and normal force are
+/// the record's.  What the models' input error does to a fit is measured on such replicas (the
+/// covariance of extension_families.hpp): the errors of a staircase depend on the motion
+/// (constant at rest, correlated over a slow presliding loop), which white noise of q / sqrt(12)
+/// would not reproduce.  `seed` picks the replica; the same seed gives the same replica.  False
+/// (the record unchanged) when the sensor has neither a quantum nor noise.
+bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica);
 
 /// Decide the force sign of a record (see the header comment).
 ForceSignEstimate estimate_force_sign(std::span<const double> time,

@@ -726,6 +726,25 @@ TEST(DiscoveryStudy, ToldTheEffectItFitsIt) {
   }
 }
 
+// Every true parameter of a told record's directory (truth.json) against the told fit's estimate
+// (told.json): a standard error, and |z| <= limit.  Returns how many were judged.
+int expect_told_parameters_within(const fs::path& rd, double limit) {
+  const Json told = Json::parse(read_file((rd / "told.json").string()));
+  const Json truth = Json::parse(read_file((rd / "truth.json").string()));
+  int judged = 0;
+  for (const Json& t : truth.at("parameters")) {
+    const std::string effect = t.at("effect"), name = t.at("name");
+    const Json& est = told.at("extensions").at("pieces").at(effect).at(name);
+    const double se = est.at("standard_error").get<double>();
+    EXPECT_GT(se, 0) << effect << " " << name << " has no standard error";
+    const double z = (est.at("value").get<double>() - t.at("value").get<double>()) / se;
+    EXPECT_LE(std::abs(z), limit) << effect << " " << name << ": " << est.at("value")
+                                  << " against " << t.at("value") << ", z " << z;
+    ++judged;
+  }
+  return judged;
+}
+
 // study-output/NAME, emptied: a regression test's own record directory.
 fs::path fresh_output_directory(const std::string& name) {
   const fs::path dir = fs::current_path() / "study-output" / name;
@@ -751,20 +770,33 @@ TEST(DiscoveryStudy, ToldLagBeyondTheShortestIntervalBetweenReversals) {
   ASSERT_TRUE(o.eligible) << "twin " << o.twin_percent << " % against its floor " << o.twin_floor;
   EXPECT_LE(o.told_percent, 1.5 * o.floor) << o.told_percent << " % against the floor " << o.floor;
   const fs::path rd = dir / "records" / id;
+  // static, stribeck_velocity, stribeck_exponent, lag_time
+  EXPECT_EQ(expect_told_parameters_within(rd, 3.0), 4);
+}
+
+// A regression record: `frictional-lag+viscous-2` at seed 1218890284838083431 (multisine, 775 Hz,
+// sigma2 4.5e5 N s/m, tau 32 ms).  The simulator's lag has a second of history before the first
+// sample; the models started the lagged velocity at the first sample's velocity, and the fit
+// absorbed the transient sigma2 (v_l(0) - v(0)) exp(-t/tau) by bending sigma2 and tau: 1.97 times
+// the validation floor (02012eb's CLI fails this test).  With the lag's offset estimated as an
+// initial state (extension_fit.hpp, extended_state_size) on both records, the told fit must
+// validate within 1.2 times the floor with both parameters within 3 standard errors.
+TEST(DiscoveryStudy, ToldLagWithItsInitialStateEstimated) {
+  const std::string id = "frictional-lag+viscous-2";
+  const std::optional<RecordSpec> spec = plan_record(1218890284838083431ULL, id);
+  ASSERT_TRUE(spec) << id;
+  const fs::path dir = fresh_output_directory("told-lag-state");
+  const ToldOutcome o = run_told(*spec, dir);
+  ASSERT_TRUE(o.error.empty()) << o.error;
+  ASSERT_TRUE(o.eligible) << "twin " << o.twin_percent << " % against its floor " << o.twin_floor;
+  EXPECT_LE(o.told_percent, 1.2 * o.floor) << o.told_percent << " % against the floor " << o.floor;
+  const fs::path rd = dir / "records" / id;
+  EXPECT_EQ(expect_told_parameters_within(rd, 3.0), 2);  // viscous, lag_time
+  // The validation record's lag offset is estimated and reported.
   const Json told = Json::parse(read_file((rd / "told.json").string()));
-  const Json truth = Json::parse(read_file((rd / "truth.json").string()));
-  int judged = 0;
-  for (const Json& t : truth.at("parameters")) {
-    const std::string effect = t.at("effect"), name = t.at("name");
-    const Json& est = told.at("extensions").at("pieces").at(effect).at(name);
-    const double se = est.at("standard_error").get<double>();
-    ASSERT_GT(se, 0) << effect << " " << name << " has no standard error";
-    const double z = (est.at("value").get<double>() - t.at("value").get<double>()) / se;
-    EXPECT_LE(std::abs(z), 3.0) << effect << " " << name << ": " << est.at("value") << " against "
-                                << t.at("value") << ", z " << z;
-    ++judged;
-  }
-  EXPECT_EQ(judged, 4);  // static, stribeck_velocity, stribeck_exponent, lag_time
+  const Json& state = told.at("validation").at("initial_state_values");
+  ASSERT_TRUE(state.contains("lag_offset")) << state.dump();
+  EXPECT_EQ(state.at("lag_offset").at("unit"), "m/s");
 }
 
 // A regression test (label long, its own record): the diagnosis of `asymmetry-3` at seed
