@@ -50,13 +50,6 @@ inline double record_duration(const Record& r) {
   return std::max(r.time.back() - r.time.front(), 1e-12);
 }
 
-inline double largest_speed(const Record& r) {
-  double vmax = 0;
-  for (std::size_t k = 1; k < r.size(); ++k)
-    vmax = std::max(
-        vmax, std::abs(r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]));
-  return std::max(vmax, 1e-12);
-}
 
 inline bool at_bound(double v, double bound) {
   if (!std::isfinite(bound)) return false;
@@ -363,7 +356,7 @@ Box theta_box(const Family& family, const ExtensionParameters<double>& pieces, d
               const Record& r) {
   Box b;
   if (family.base_count() > 0) b = family.base_box(r);
-  const double duration = record_duration(r), vmax = largest_speed(r);
+  const double duration = record_duration(r), vmax = largest_interval_speed(r);
   pieces.for_each_parameter([&](Effect e, std::string_view name, const double&) {
     const ExtensionBounds eb = extension_parameter_bounds(e, name, f0, duration, vmax);
     b.lower.push_back(eb.lower);
@@ -568,11 +561,11 @@ template <class Family>
 Eigen::MatrixXd input_error_covariance(const Record& r, const Family& family,
                                        const ExtensionParameters<double>& pieces,
                                        const std::vector<double>& theta,
-                                       const std::vector<double>& state, const Eigen::MatrixXd& Js,
-                                       const Eigen::MatrixXd& Hinv) {
+                                       const std::vector<double>& state,
+                                       const std::vector<double>& residual,
+                                       const Eigen::MatrixXd& Js, const Eigen::MatrixXd& Hinv) {
   const Eigen::Index p = Js.cols(), n = Js.rows();
   Eigen::MatrixXd second = Eigen::MatrixXd::Zero(p, p);
-  const std::vector<double> f0 = family_run(r, family, pieces, theta.data(), state);
   Record replica;
   Eigen::VectorXd df(n);
   std::size_t used = 0;
@@ -585,7 +578,9 @@ Eigen::MatrixXd input_error_covariance(const Record& r, const Family& family,
       continue;
     }
     for (Eigen::Index k = 0; k < n; ++k)
-      df(k) = f[static_cast<std::size_t>(k)] - f0[static_cast<std::size_t>(k)];
+      // The model's force on the record itself is F - residual (the cost at scale 1).
+      df(k) = f[static_cast<std::size_t>(k)] -
+              (r.force[static_cast<std::size_t>(k)] - residual[static_cast<std::size_t>(k)]);
     if (!df.allFinite()) continue;
     const Eigen::VectorXd g = Js.transpose() * df;
     second.noalias() += g * g.transpose();
@@ -690,7 +685,7 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
   Eigen::MatrixXd scaled = sandwich_covariance(Hinv, gram.coloured(), s2);
   if (scores.blocks() >= kMinimumScoreBlocks)
     scaled = larger_variances(scaled, block_sandwich_covariance(Hinv, scores, n, rank));
-  scaled += input_error_covariance(r, family, pieces, theta, state, Js, Hinv);
+  scaled += input_error_covariance(r, family, pieces, theta, state, residual, Js, Hinv);
   out.covariance = d.cwiseInverse().asDiagonal() * scaled * d.cwiseInverse().asDiagonal();
   out.scale = d;
   out.null_directions.resize(static_cast<Eigen::Index>(p), static_cast<Eigen::Index>(null.size()));

@@ -313,14 +313,11 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
     problem.SetParameterUpperBound(rho.data(), static_cast<int>(i), b);
   }
   const double duration = std::max(r.time.back() - r.time.front(), 1e-12);
-  double vmax = 0;
-  for (std::size_t k = 1; k < r.size(); ++k)
-    vmax = std::max(
-        vmax, std::abs(r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]));
+  const double vmax = largest_interval_speed(r);
   const double f0 = ext0.reference_force > 0 ? ext0.reference_force : base0.sliding_force();
   for (std::size_t j = 0; j < names.size(); ++j) {
     const ExtensionBounds b = extension_parameter_bounds(names[j].first, names[j].second, f0,
-                                                         duration, std::max(vmax, 1e-12));
+                                                         duration, vmax);
     double& v = theta[2 * m + j];
     v = std::clamp(v, b.lower, b.upper);
     if (std::isfinite(b.lower))
@@ -392,7 +389,7 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   for (std::size_t q = 0; q < names.size(); ++q) {
     if (held_in_fit(names[q].first, names[q].second)) continue;
     const ExtensionBounds b = extension_parameter_bounds(names[q].first, names[q].second, f0,
-                                                         duration, std::max(vmax, 1e-12));
+                                                         duration, vmax);
     const double v = theta[2 * m + q];
     auto on = [&](double edge) {
       return std::isfinite(edge) && std::abs(v - edge) <= 1e-9 * std::max(1.0, std::abs(edge));
@@ -405,14 +402,15 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   return out;
 }
 
-double lag_offset_bound(const Record& r) {
+double largest_interval_speed(const Record& r) {
   double vmax = 0;
-  for (std::size_t k = 1; k < r.size(); ++k) {
-    const double dt = r.time[k] - r.time[k - 1];
-    if (dt > 0) vmax = std::max(vmax, std::abs(r.displacement[k] - r.displacement[k - 1]) / dt);
-  }
-  return std::max(2.0 * vmax, 1e-12);
+  for (std::size_t k = 1; k < r.size(); ++k)
+    vmax = std::max(
+        vmax, std::abs(r.displacement[k] - r.displacement[k - 1]) / (r.time[k] - r.time[k - 1]));
+  return std::max(vmax, 1e-12);
 }
+
+double lag_offset_bound(const Record& r) { return 2.0 * largest_interval_speed(r); }
 
 double own_reference_ratio(const ExtensionParameters<double>& ext, double own_f0) {
   return ext.reference_force > 0 ? own_f0 / ext.reference_force : 1.0;

@@ -46,6 +46,10 @@ inline std::size_t extended_state_size(std::size_t operators,
   return operators + (ext.frictional_lag ? 1 : 0);
 }
 
+/// The record's largest interval speed |x_k - x_{k-1}| / (t_k - t_{k-1}) [m/s], at least 1e-12: the
+/// speed scale of the pieces' boxes.
+double largest_interval_speed(const Record& r);
+
 /// The box |u| <= 2 v_max of the lag's offset on a record (v_max its largest interval speed):
 /// v_l and v both lie within the speeds of the motion.
 double lag_offset_bound(const Record& r);
