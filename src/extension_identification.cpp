@@ -69,7 +69,9 @@ void note_rank_deficiency(ExtensionIdentification& res, bool rank_deficient) {
       "the joint fit's covariance is rank deficient (some parameters trade off against each other "
       "on this record): " +
       (without.empty() ? std::string("the pieces' standard errors are those of the estimable "
-                                     "parameters, the base's that trade off get none")
+                                     "parameters (widened to what its bounds allow where one "
+                                     "trades off against an initial state), the base's that "
+                                     "trade off get none")
                        : "no standard error for " + without));
 }
 

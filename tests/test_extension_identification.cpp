@@ -157,6 +157,56 @@ TEST(ExtensionIdentification, ARankDeficientBaseKeepsThePiecesStandardErrors) {
   EXPECT_EQ(with_error, 2 * (truth.k.size() - 1));
 }
 
+// An operator that never slips in the record adds k (delta0 + x - x0): its initial deflection
+// delta0 and an offset make the same constant force, and the record cannot split them.  What it
+// does know is that delta0 kept the operator from slipping, so every offset it admits lies in a
+// bounded range, and the offset's interval must hold all of them: before, the offset had no
+// standard error at all (two study records, seeds 10084102994804123402 and 13363032069744316674).
+TEST(ExtensionIdentification, AnOffsetBesideAnOperatorThatNeverSlipsIsBoundedByItsState) {
+  constexpr double kOffset = 0.02;  // N
+  testing::SlipSystem system;
+  const Excitation ex;
+  // Threshold four times the excitation's amplitude, stiffness so that k Delta is about the
+  // offset: the spring's initial force is as uncertain as the offset itself.
+  const double k = 100.0, delta = 4 * ex.amplitude;
+  system.k.push_back(k);
+  system.delta.push_back(delta);
+  const Record r = with_noise(make_clean(Injected::offset, kOffset, ex, kSamples, 0.0, system),
+                              kSigma, 11);
+  // The fit at the truth: the generator starts every operator relaxed (rho = 0).
+  ExtendedSlipFit fit;
+  fit.base = {system.k, system.delta};
+  fit.rho.assign(system.k.size(), 0.0);
+  fit.ext.offset = OffsetExtension<double>{kOffset};
+  fit.ext.reference_force = fit.base.sliding_force();
+  fit.ok = true;
+  const ExtendedSlipReport rep = report_extended_slip(r, fit);
+  EXPECT_TRUE(rep.rank_deficient);
+  ASSERT_EQ(rep.pieces.size(), 1u);
+  const ExtensionEstimate& offset = rep.pieces[0];
+  ASSERT_TRUE(offset.available) << "no standard error for the offset";
+  // The initial deflections that keep the spring from slipping, and the offset each implies.
+  double lo = -1e300, hi = 1e300;
+  for (double x : r.displacement) {
+    const double travel = x - r.displacement.front();
+    lo = std::max(lo, -delta - travel);
+    hi = std::min(hi, delta - travel);
+  }
+  ASSERT_LT(lo, hi) << "the operator slips: the test's system is wrong";
+  for (double delta0 : {lo, 0.5 * (lo + hi), hi}) {
+    const double admitted = kOffset - k * delta0;
+    EXPECT_GE(admitted, offset.lower95) << "delta0 " << delta0;
+    EXPECT_LE(admitted, offset.upper95) << "delta0 " << delta0;
+  }
+  // No wider than the box [-Delta, Delta] of delta0 allows with the estimate at its centre:
+  // second moment (k Delta)^2 / 3, beside which the force noise's share is negligible here.
+  EXPECT_LE(offset.standard_error, 1.01 * k * delta / std::sqrt(3.0));
+  EXPECT_GE(offset.standard_error, 0.99 * k * delta / std::sqrt(3.0));
+  // The operators that slip are unaffected: each keeps a standard error.
+  for (std::size_t i = 0; i + 1 < system.k.size(); ++i)
+    EXPECT_GT(rep.base[i].standard_error, 0.0) << rep.base[i].name;
+}
+
 TEST(ExtensionIdentification, StribeckOnMaxwellSlipIsRecovered) {
   // Injected: level 1 + 0.3 exp(-(v / 0.2 mm/s)^2), so static / F0 = 1.3 whatever F0 the refit
   // settles at.
