@@ -799,24 +799,41 @@ TEST(DiscoveryStudy, ToldLagWithItsInitialStateEstimated) {
   EXPECT_EQ(state.at("lag_offset").at("unit"), "m/s");
 }
 
+// One record of the plan at `seed`, diagnosed in a directory of its own: it must be named
+// exactly, and every parameter of the named effects (the model-free ones only when asked) must
+// have a standard error that puts it within `max_z` of them.  Returns how many were judged.
+int expect_exact_with_parameters_within(std::uint64_t seed, const std::string& id,
+                                        const std::string& directory, double max_z,
+                                        bool model_free_only) {
+  const std::optional<RecordSpec> spec = plan_record(seed, id);
+  if (!spec) {
+    ADD_FAILURE() << id << " is not in the plan of seed " << seed;
+    return 0;
+  }
+  const Outcome o = run_record(*spec, fresh_output_directory(directory));
+  EXPECT_TRUE(o.error.empty()) << o.error;
+  EXPECT_TRUE(o.exact()) << o.summary;
+  int judged = 0;
+  for (const ParameterOutcome& p : o.parameters) {
+    if (model_free_only && !p.model_free) continue;
+    ++judged;
+    EXPECT_TRUE(p.standard_error > 0) << p.effect << " " << p.name << " has no standard error";
+    EXPECT_LE(std::abs(p.z()), max_z) << p.effect << " " << p.name << ": " << p.estimate
+                                      << " against " << p.truth << ", z " << p.z();
+  }
+  return judged;
+}
+
 // A regression test (label long, its own record): the diagnosis of `asymmetry-3` at seed
 // 4142990654516801226 ended with one of its four operators at a stiffness of ~1e-9 N/m (beside
 // 1e5) and gave the asymmetry, estimated to three digits, no standard error: that operator's
 // columns, ~1e-14 N, scaled to unit norm, made the covariance rank-deficient along the piece.
 // Every parameter of the named effects must have a standard error and lie within 3 of them.
 TEST(DiscoveryStudy, APieceBesideAnOperatorTheForceDoesNotFeelHasAStandardError) {
-  const std::string id = "asymmetry-3";
-  const std::optional<RecordSpec> spec = plan_record(4142990654516801226ULL, id);
-  ASSERT_TRUE(spec) << id;
-  const Outcome o = run_record(*spec, fresh_output_directory("standard-error-regression"));
-  ASSERT_TRUE(o.error.empty()) << o.error;
-  EXPECT_TRUE(o.exact()) << o.summary;
-  ASSERT_EQ(o.parameters.size(), 1u);  // asymmetry
-  for (const ParameterOutcome& p : o.parameters) {
-    ASSERT_TRUE(p.standard_error > 0) << p.effect << " " << p.name << " has no standard error";
-    EXPECT_LE(std::abs(p.z()), 3.0) << p.effect << " " << p.name << ": " << p.estimate
-                                    << " against " << p.truth << ", z " << p.z();
-  }
+  // asymmetry
+  EXPECT_EQ(expect_exact_with_parameters_within(4142990654516801226ULL, "asymmetry-3",
+                                                "standard-error-regression", 3.0, false),
+            1);
 }
 
 // A regression test (label long, its own record): `stribeck+position-dependence` at seed
@@ -827,21 +844,11 @@ TEST(DiscoveryStudy, APieceBesideAnOperatorTheForceDoesNotFeelHasAStandardError)
 // of the named effects must have a standard error that puts it within 3 of them (the wavelength
 // was at 2.7 before and after the change; the amplitude now at 0.3).
 TEST(DiscoveryStudy, AnAmplitudeInNewtonsCarriesTheUncertaintyOfF0) {
-  const std::string id = "stribeck+position-dependence";
-  const std::optional<RecordSpec> spec = plan_record(16154998733739651599ULL, id);
-  ASSERT_TRUE(spec) << id;
-  const Outcome o = run_record(*spec, fresh_output_directory("reference-force-regression"));
-  ASSERT_TRUE(o.error.empty()) << o.error;
-  EXPECT_TRUE(o.exact()) << o.summary;
-  int model_free = 0;
-  for (const ParameterOutcome& p : o.parameters) {
-    if (!p.model_free) continue;
-    ++model_free;
-    ASSERT_TRUE(p.standard_error > 0) << p.effect << " " << p.name << " has no standard error";
-    EXPECT_LE(std::abs(p.z()), 3.0) << p.effect << " " << p.name << ": " << p.estimate
-                                    << " against " << p.truth << ", z " << p.z();
-  }
-  EXPECT_EQ(model_free, 2);  // amplitude, wavelength
+  // amplitude, wavelength
+  EXPECT_EQ(expect_exact_with_parameters_within(16154998733739651599ULL,
+                                                "stribeck+position-dependence",
+                                                "reference-force-regression", 3.0, true),
+            2);
 }
 
 TEST(DiscoveryStudy, NonlocalMemoryOnALugreBaseline) {
