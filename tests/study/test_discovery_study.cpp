@@ -23,9 +23,13 @@
 //
 // Criteria (issue 5): >= 53/60 exact (scaled to the plan's size), <= 2 no-effect records with any
 // finding, pooled 95 % coverage of the model-free parameters within 85-99 % and median |z| <= 1.2.
-// Until the diagnosis meets them they are reported, not asserted (FRICTION_STUDY_ASSERT=1 asserts
-// them); what is asserted is what a user relies on in every run: the command succeeds on every
-// record and its document keeps the contract of cli.md (names, the chain of findings).
+// Asserted on every run of the whole plan: the command succeeds on every record and its document
+// keeps the contract of cli.md (names, the chain of findings), and the three criteria the
+// diagnosis has met at every seed run since 7caf809 (seven seeds, ten runs: exact 57-61/62, 0-1
+// no-effect records with a finding, median |z| 0.51-0.79): exact records, false findings,
+// median |z|; and the LuGre baseline's exact records.
+// Coverage and "told the effect" still fail at some seeds (README, Status); they are reported,
+// and asserted only with FRICTION_STUDY_ASSERT=1.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <spawn.h>
@@ -589,11 +593,13 @@ TEST(DiscoveryStudy, EveryEffectPairsAndNoEffectOnAnNlrBaseline) {
   const StudyRun run = run_study("nlr", only_selected(plan), seed, origin);
   check_runs(run);
   const Criteria c = report(run, "Discovery study, NLR baseline");
-  if (assert_criteria() && whole_plan()) {
+  if (whole_plan()) {
     EXPECT_TRUE(c.exact_ok()) << c.exact << "/" << c.records << " exact";
     EXPECT_TRUE(c.false_ok()) << c.no_effect_with_findings << " no-effect records with findings";
-    EXPECT_TRUE(c.coverage_ok()) << c.covered << "/" << c.intervals;
     EXPECT_TRUE(c.z_ok()) << c.median_abs_z;
+    if (assert_criteria()) {
+      EXPECT_TRUE(c.coverage_ok()) << c.covered << "/" << c.intervals;
+    }
   }
 }
 
@@ -865,7 +871,7 @@ TEST(DiscoveryStudy, NonlocalMemoryOnALugreBaseline) {
   const StudyRun run = run_study("lugre", only_selected(plan), seed, origin);
   check_runs(run);
   const Criteria c = report(run, "Discovery study, LuGre baseline (nonlocal-memory)", 1);
-  if (assert_criteria() && whole_plan()) {
+  if (whole_plan()) {
     EXPECT_TRUE(c.exact_ok()) << c.exact << "/" << c.records;
   }
 }
