@@ -50,7 +50,6 @@ inline double record_duration(const Record& r) {
   return std::max(r.time.back() - r.time.front(), 1e-12);
 }
 
-
 inline bool at_bound(double v, double bound) {
   if (!std::isfinite(bound)) return false;
   return v == bound || std::abs(v - bound) <= 1e-6 * std::max(std::abs(bound), std::abs(v));
@@ -808,10 +807,8 @@ void reference_scaled_standard_error(const Family& family, const std::vector<dou
                                      const FreeCovariance& cov, std::ptrdiff_t own_column,
                                      double ratio, ExtensionEstimate& est) {
   const bool derived = held_in_fit(est.effect, est.name);
-  if (!cov.ok || family.base_count() == 0 || (!derived && own_column < 0)) {
-    if (derived) est.available = false, est.standard_error = 0;
-    return;
-  }
+  // A derived parameter has no column, so covariance_report left it without a standard error.
+  if (!cov.ok || family.base_count() == 0 || (!derived && own_column < 0)) return;
   const double f0 = family.sliding_force(base_theta.data());
   if (!(f0 > 0)) return;
   Eigen::VectorXd g = sliding_force_gradient(family, base_theta, cov) * (est.value / f0);
