@@ -46,10 +46,6 @@ inline double sum_sq(const std::vector<double>& v) {
   return s;
 }
 
-inline double record_duration(const Record& r) {
-  return std::max(r.time.back() - r.time.front(), 1e-12);
-}
-
 inline bool at_bound(double v, double bound) {
   if (!std::isfinite(bound)) return false;
   return v == bound || std::abs(v - bound) <= 1e-6 * std::max(std::abs(bound), std::abs(v));
@@ -465,12 +461,13 @@ FamilyFit fit_family(const Record& r, const Family& family, const std::vector<do
 template <class Family>
 std::vector<double> family_run(const Record& r, const Family& family,
                                const ExtensionParameters<double>& ext, const double* theta_base,
-                               const std::vector<double>& state) {
+                               const std::vector<double>& state,
+                               const DerivativeWindows* windows = nullptr) {
   auto model = family.template make<double>(theta_base, ext);
   family.template set_state<double>(model, theta_base, state.data());
   return simulate_extended(
       model, std::span<const double>(r.time), std::span<const double>(r.displacement),
-      std::span<const double>(r.normal), nullptr, std::span<const double>(r.measured_displacement));
+      std::span<const double>(r.normal), windows, std::span<const double>(r.measured_displacement));
 }
 
 inline double rss_of(const Record& r, const std::vector<double>& f) {
@@ -560,12 +557,12 @@ struct FreeCovariance {
 // intervals missed: without the encoder, eight of nine misses came within 1.7 standard errors
 // (README, "The discovery study's coverage").  Measured here the way a second measurement of the
 // same motion would show it: the record remeasured by its own sensor (signals.hpp,
-// remeasured_replica: requantised with a random phase and conditioned as the record was), the
-// model run again at the optimum, and the linearised response of the fit to the change of its
-// force, d theta = (J^T J)^+ J^T dF, in the scaled coordinates of covariance_at.  Its second
-// moment over kInputReplicas replicas is added to the covariance (the part of those errors the
-// residual already shows is counted twice: the intervals err on the wide side).  Replicas are
-// seeded by their index: the same record gives the same covariance.
+// remeasured_replica: requantised with a random phase and conditioned as the record was, with
+// its windows), the model run again at the optimum, and the linearised response of the fit to the
+// change of its force, d theta = (J^T J)^+ J^T dF, in the scaled coordinates of covariance_at.
+// Its second moment over kInputReplicas replicas is added to the covariance (the part of those
+// errors the residual already shows is counted twice: the intervals err on the wide side).
+// Replicas are seeded by their index: the same record gives the same covariance.
 inline constexpr std::size_t kInputReplicas = 24;
 
 template <class Family>
@@ -580,11 +577,14 @@ Eigen::MatrixXd input_error_covariance(const Record& r, const Family& family,
   Record replica;
   Eigen::VectorXd df(n);
   std::size_t used = 0;
+  // Every replica is conditioned, and its pieces differentiated, with the record's own windows
+  // (signals.hpp, remeasured_replica).
+  const Remeasurement sensor = remeasurement_of(r);
   for (std::size_t j = 0; j < kInputReplicas; ++j) {
-    if (!remeasured_replica(r, 0x9e3779b97f4a7c15ULL * (j + 1), replica)) break;
+    if (!remeasured_replica(r, 0x9e3779b97f4a7c15ULL * (j + 1), replica, sensor)) break;
     std::vector<double> f;
     try {
-      f = family_run(replica, family, pieces, theta.data(), state);
+      f = family_run(replica, family, pieces, theta.data(), state, &sensor.windows);
     } catch (const InvalidParameter&) {
       continue;
     }

@@ -312,7 +312,7 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
     problem.SetParameterLowerBound(rho.data(), static_cast<int>(i), -b);
     problem.SetParameterUpperBound(rho.data(), static_cast<int>(i), b);
   }
-  const double duration = std::max(r.time.back() - r.time.front(), 1e-12);
+  const double duration = record_duration(r);
   const double vmax = largest_interval_speed(r);
   const double f0 = ext0.reference_force > 0 ? ext0.reference_force : base0.sliding_force();
   for (std::size_t j = 0; j < names.size(); ++j) {
@@ -400,6 +400,10 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   out.ok = summary.IsSolutionUsable();
   out.rss = out.ok ? 2.0 * summary.final_cost * rms * rms : std::numeric_limits<double>::infinity();
   return out;
+}
+
+double record_duration(const Record& r) {
+  return std::max(r.time.back() - r.time.front(), 1e-12);
 }
 
 double largest_interval_speed(const Record& r) {

@@ -174,7 +174,7 @@ ProfileScales profile_scales(const Record& r, const ExtendedSlipRun& run, double
   ProfileScales s;
   const std::size_t n = r.size();
   s.reference_force = reference_force;
-  s.duration = std::max(r.time.back() - r.time.front(), 1e-12);
+  s.duration = record_duration(r);
   s.sample_period = n > 1 ? s.duration / static_cast<double>(n - 1) : 1.0;
   std::vector<double> sliding, moving, steps;
   for (std::size_t k = 1; k < n; ++k) {

@@ -264,7 +264,7 @@ ExtensionParameters<double> extension_start(Effect e, const ExtensionParameters<
   const EffectEvidence* viscous = find_evidence(ev, Effect::viscous);
   EvidenceStartContext c;
   c.reference_force = f0;
-  c.duration = std::max(r.time.back() - r.time.front(), 1e-12);
+  c.duration = record_duration(r);
   c.sample_period = c.duration / static_cast<double>(r.size() - 1);
   if (effect_info(e).needs_normal_force) {
     double sum = 0;

@@ -402,8 +402,14 @@ std::vector<double> displacement_the_models_see(std::span<const double> time,
   return estimate;
 }
 
-bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica) {
-  const Resolution res = estimate_displacement_resolution(record.measured());
+Remeasurement remeasurement_of(const Record& record) {
+  return {estimate_displacement_resolution(record.measured()),
+          record_derivative_windows(record.time, record.measured())};
+}
+
+bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica,
+                        const Remeasurement& sensor) {
+  const Resolution& res = sensor.resolution;
   if (!res.quantum && !(res.noise > 0)) return false;
   std::mt19937_64 rng(seed);
   replica.time = record.time;
@@ -418,15 +424,21 @@ bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replic
     std::normal_distribution<double> noise(0.0, res.noise);
     for (double& v : x) v += noise(rng);
   }
-  std::vector<double> estimate = displacement_the_models_see(replica.time, x);
-  if (estimate.empty()) {
+  const DerivativeWindows& w = sensor.windows;
+  // A quadratic through three samples passes them (displacement_the_models_see).
+  if (x.size() < 16 || (w.displacement_half_width <= 1 && w.displacement_degree == 2)) {
     replica.displacement = std::move(x);
     replica.measured_displacement.clear();
   } else {
+    replica.displacement.resize(x.size());
+    apply_local_displacement<double>(replica.time, x, w, replica.displacement);
     replica.measured_displacement = std::move(x);
-    replica.displacement = std::move(estimate);
   }
   return true;
+}
+
+bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica) {
+  return remeasured_replica(record, seed, replica, remeasurement_of(record));
 }
 
 }  // namespace friction

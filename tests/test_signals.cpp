@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <numbers>
 #include <random>
@@ -345,6 +346,51 @@ TEST(Conditioning, ARemeasuredReplicaErrsAsTheRecordsOwnEncoder) {
     EXPECT_GT(e, 0.5 * own) << seed;
     EXPECT_LT(e, 2.0 * own) << seed;
   }
+}
+
+// A replica is conditioned as the record was: the local polynomial of the record's own windows,
+// not the rule run again on the replica (which picks windows a sample or two away on some of them:
+// a different estimator, and a tenth of a diagnosis).  Both overloads give the same replica.
+TEST(Conditioning, AReplicaIsConditionedWithTheRecordsOwnWindows) {
+  const double q = 2e-8;
+  Record r;
+  for (int k = 0; k < 3000; ++k) {
+    const double t = 5e-4 * k;
+    const double x = 4e-6 * std::sin(2 * kPi * 1.3 * t) * (1 + 0.5 * std::sin(2 * kPi * 0.21 * t));
+    r.time.push_back(t);
+    r.displacement.push_back(q * std::round(x / q));
+  }
+  r.force = maxwell_slip_force(r.time, r.displacement);
+  friction::condition_record(r);
+  ASSERT_FALSE(r.measured_displacement.empty()) << "the rule kept the staircase";
+  const friction::Remeasurement sensor = friction::remeasurement_of(r);
+  EXPECT_EQ(sensor.windows, friction::record_derivative_windows(r.time, r.measured()));
+  ASSERT_TRUE(sensor.resolution.quantum.has_value());
+  EXPECT_NEAR(*sensor.resolution.quantum, q, 1e-3 * q);
+  std::size_t rule_differs = 0;
+  for (std::uint64_t seed = 1; seed <= 24; ++seed) {
+    Record a, b;
+    ASSERT_TRUE(friction::remeasured_replica(r, seed, a, sensor));
+    ASSERT_TRUE(friction::remeasured_replica(r, seed, b));
+    EXPECT_EQ(a.displacement, b.displacement) << seed;
+    ASSERT_EQ(a.measured_displacement.size(), r.size()) << seed;
+    std::vector<double> own(r.size());
+    friction::apply_local_displacement<double>(a.time, a.measured_displacement, sensor.windows,
+                                               own);
+    EXPECT_EQ(a.displacement, own) << seed;
+    const friction::DerivativeWindows w =
+        friction::choose_derivative_windows(a.time, a.measured_displacement);
+    const auto& o = sensor.windows;
+    if (w.velocity_half_width != o.velocity_half_width || w.velocity_degree != o.velocity_degree ||
+        w.acceleration_half_width != o.acceleration_half_width ||
+        w.acceleration_degree != o.acceleration_degree ||
+        w.displacement_half_width != o.displacement_half_width ||
+        w.displacement_degree != o.displacement_degree)
+      ++rule_differs;
+  }
+  // Not a requirement, a record of why the windows are passed: say how often the rule would differ.
+  std::printf("the rule run again would choose other windows on %zu of 24 replicas\n",
+              rule_differs);
 }
 
 // ------------------------------------------------------------------ the real tribometer record

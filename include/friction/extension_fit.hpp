@@ -46,6 +46,10 @@ inline std::size_t extended_state_size(std::size_t operators,
   return operators + (ext.frictional_lag ? 1 : 0);
 }
 
+/// The record's duration t_N - t_1 [s], at least 1e-12: the time scale of the pieces' boxes (drift,
+/// delay), the same in every fit and report.
+double record_duration(const Record& r);
+
 /// The record's largest interval speed |x_k - x_{k-1}| / (t_k - t_{k-1}) [m/s], at least 1e-12: the
 /// speed scale of the pieces' boxes.
 double largest_interval_speed(const Record& r);

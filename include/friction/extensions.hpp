@@ -757,17 +757,6 @@ std::vector<T> delayed_displacement(std::span<const double> time, std::span<cons
   return xs;
 }
 
-/// The derivative windows simulate_extended uses on a record (choose_derivative_windows; the
-/// backward difference, half width 1, on records too short for the rule).  Fits that simulate the
-/// same record many times compute them once and pass them in.
-inline DerivativeWindows record_derivative_windows(std::span<const double> time,
-                                                   std::span<const double> x) {
-  if (x.size() >= 16) return choose_derivative_windows(time, x);
-  DerivativeWindows w;
-  if (x.size() >= 2) w.sampling_period = (time.back() - time.front()) / double(x.size() - 1);
-  return w;
-}
-
 /// The derivative windows of a record: chosen on the displacement as measured, and applied to the
 /// one the models see (sample_derivatives.hpp, "The displacement the models see").
 inline DerivativeWindows record_derivative_windows(const Record& r) {

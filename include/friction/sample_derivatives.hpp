@@ -146,6 +146,17 @@ struct SampleDerivatives {
 DerivativeWindows choose_derivative_windows(std::span<const double> time,
                                             std::span<const double> x);
 
+/// The derivative windows simulate_extended uses on a record (choose_derivative_windows; the
+/// backward difference, half width 1, on records too short for the rule).  Fits that simulate the
+/// same record many times compute them once and pass them in.
+inline DerivativeWindows record_derivative_windows(std::span<const double> time,
+                                                   std::span<const double> x) {
+  if (x.size() >= 16) return choose_derivative_windows(time, x);
+  DerivativeWindows w;
+  if (x.size() >= 2) w.sampling_period = (time.back() - time.front()) / double(x.size() - 1);
+  return w;
+}
+
 /// v and a at every sample by local polynomial fits with the given half widths (>= 1) and degrees
 /// (2 or 4; a degree 4 needs a half width >= 2).
 void local_polynomial_derivatives(std::span<const double> time, std::span<const double> x,
