@@ -472,14 +472,41 @@ void polish_final(const Context& c, Chain& chain) {
 Chain backward_pass(const Context& c, Chain chain) {
   if (!c.options.backward_pass || chain.states.back().order.size() < 2) return chain;
   State full = chain.states.back();
+  struct Without {
+    ExtendedSlipFit fit;
+    double validation = 0;
+    std::exception_ptr error;  // of a fit made ahead: thrown only when the loop reaches it
+  };
+  auto fit_without = [&](const State& from, Effect e) {
+    const ExtensionParameters<double> without = without_piece(from, e);
+    Without w;
+    w.fit = fit_extended_slip(
+        c.est, from.base,
+        carried_state(c.est, from.base, from.ext, from.rho, from.base, without, &c.windows),
+        without, false, c.options.max_iterations);
+    w.validation = extended_validation_percent(w.fit.base, w.fit.ext, c.val);
+    return w;
+  };
+  // The fits without each piece of the model as the forward pass left it are independent: made
+  // concurrently, each into its own slot, and used for as long as the model has not changed (it
+  // nearly never does); after a change they are fitted again from the changed model, one by one
+  // as before.  The same result on any number of threads.
+  std::vector<Without> ahead(full.order.size());
+  detail::parallel_for(ahead.size(), c.options.threads, [&](std::size_t i) {
+    try {
+      ahead[i] = fit_without(full, full.order[i]);
+    } catch (...) {
+      ahead[i].error = std::current_exception();
+    }
+  });
+  bool changed = false;
   for (std::size_t i = 0; i < full.order.size();) {
     const Effect e = full.order[i];
     const ExtensionParameters<double> without = without_piece(full, e);
-    const ExtendedSlipFit f = fit_extended_slip(
-        c.est, full.base,
-        carried_state(c.est, full.base, full.ext, full.rho, full.base, without, &c.windows),
-        without, false, c.options.max_iterations);
-    const double v_without = extended_validation_percent(f.base, f.ext, c.val);
+    const Without w = changed ? fit_without(full, e) : ahead[i];
+    if (w.error) std::rethrow_exception(w.error);
+    const ExtendedSlipFit& f = w.fit;
+    const double v_without = w.validation;
     if (f.ok && f.rss < full.rss) {
       // The model without the piece fits better than the model with it, which nests it: the full
       // model is not at its minimum (on the tribometer, position-dependence + normal-load ended
@@ -499,6 +526,7 @@ Chain backward_pass(const Context& c, Chain chain) {
       if (g.ok && g.rss < full.rss) {
         take_fit(full, g, extended_validation_percent(g.base, g.ext, c.val));
         chain.removed = true;  // the chain is recomputed for the refitted model
+        changed = true;
       }
     }
     if (f.ok) {
@@ -518,6 +546,7 @@ Chain backward_pass(const Context& c, Chain chain) {
         take_fit(full, f, v_without);
         full.order.erase(full.order.begin() + static_cast<std::ptrdiff_t>(i));
         chain.removed = true;
+        changed = true;
         i = 0;
         continue;
       }

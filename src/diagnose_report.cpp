@@ -5,11 +5,13 @@
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <vector>
 
 #include "diagnose_stages.hpp"
 #include "friction/extension_identification.hpp"
 #include "friction/identification.hpp"
 #include "number_format.hpp"
+#include "parallel_for.hpp"
 #include "position_origin.hpp"
 #include "sample_statistics.hpp"
 
@@ -112,14 +114,16 @@ ExtendedSlipReport report_at_origin(const Context& c, const State& s) {
 }
 
 // The finding of step i of the chain (states[i - 1] -> states[i]).
-Finding make_finding(const Context& c, const Chain& chain, std::size_t i, double speed_span) {
+// `rep`: receives the joint fit's report of states[i] (for the last step, the final model's).
+Finding make_finding(const Context& c, const Chain& chain, std::size_t i, double speed_span,
+                     ExtendedSlipReport& rep) {
   const State& before = chain.states[i - 1];
   const State& after = chain.states[i];
   const Effect e = after.order.back();
   Finding f;
   f.effect = e;
   // Its parameters with standard errors from the joint fit of this step (section 6).
-  const ExtendedSlipReport rep = report_at_origin(c, after);
+  rep = report_at_origin(c, after);
   const auto with = effect_info(e).reported_with;
   for (const auto& est : rep.pieces)
     if (est.effect == e) f.parameters.push_back(est);
@@ -186,8 +190,16 @@ void report(const Context& c, const Chain& chain, Diagnosis& dx) {
       dx.baseline_evidence.sliding_speed_min > 0
           ? dx.baseline_evidence.sliding_speed_max / dx.baseline_evidence.sliding_speed_min
           : 0.0;
-  for (std::size_t i = 1; i < chain.states.size(); ++i)
-    dx.findings.push_back(make_finding(c, chain, i, speed_span));
+  // The findings are independent of each other (each reads two states of the chain and the
+  // rounds): they are made concurrently, each into its own slot, so the result does not depend on
+  // the thread count.  The last one's report is the final model's.
+  const std::size_t steps = chain.states.size() - 1;
+  std::vector<Finding> findings(steps);
+  std::vector<ExtendedSlipReport> reports(steps);
+  detail::parallel_for(steps, c.options.threads, [&](std::size_t k) {
+    findings[k] = make_finding(c, chain, k + 1, speed_span, reports[k]);
+  });
+  for (Finding& f : findings) dx.findings.push_back(std::move(f));
   const State& last = chain.states.back();
   warn_of_strong_rejected(c, last, dx);
   ExtensionParameters<double> final_ext = to_own_reference(last.ext, last.base.sliding_force());
@@ -196,7 +208,8 @@ void report(const Context& c, const Chain& chain, Diagnosis& dx) {
       AnyModel(Extended<MaxwellSlip<double>>(MaxwellSlip<double>(last.base), final_ext));
   dx.final_validation_percent = last.validation;
   dx.final_estimation_percent = statistics::rss_sss_percent(c.est.force, last.rss);
-  if (!last.ext.empty()) dx.final_pieces = report_at_origin(c, last).pieces;
+  if (!last.ext.empty())
+    dx.final_pieces = steps > 0 ? reports.back().pieces : report_at_origin(c, last).pieces;
 }
 
 }  // namespace diagnose_detail
