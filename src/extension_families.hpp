@@ -557,9 +557,9 @@ struct FreeCovariance {
 // intervals missed: without the encoder, eight of nine misses came within 1.7 standard errors
 // (README, "The discovery study's coverage").  Measured here the way a second measurement of the
 // same motion would show it: the record remeasured by its own sensor (signals.hpp,
-// remeasured_replica: requantised with a random phase and conditioned as the record was, with
-// its windows), the model run again at the optimum, and the linearised response of the fit to the
-// change of its force, d theta = (J^T J)^+ J^T dF, in the scaled coordinates of covariance_at.
+// remeasured_replica: requantised with a random phase and conditioned as the record was), the
+// model run again at the optimum, and the linearised response of the fit to the change of its
+// force, d theta = (J^T J)^+ J^T dF, in the scaled coordinates of covariance_at.
 // Its second moment over kInputReplicas replicas is added to the covariance (the part of those
 // errors the residual already shows is counted twice: the intervals err on the wide side).
 // Replicas are seeded by their index: the same record gives the same covariance.
@@ -577,14 +577,13 @@ Eigen::MatrixXd input_error_covariance(const Record& r, const Family& family,
   Record replica;
   Eigen::VectorXd df(n);
   std::size_t used = 0;
-  // Every replica is conditioned, and its pieces differentiated, with the record's own windows
-  // (signals.hpp, remeasured_replica).
-  const Remeasurement sensor = remeasurement_of(r);
+  const Resolution sensor = estimate_displacement_resolution(r.measured());
+  DerivativeWindows windows;  // the replica's, as its conditioning chose them
   for (std::size_t j = 0; j < kInputReplicas; ++j) {
-    if (!remeasured_replica(r, 0x9e3779b97f4a7c15ULL * (j + 1), replica, sensor)) break;
+    if (!remeasured_replica(r, 0x9e3779b97f4a7c15ULL * (j + 1), replica, sensor, &windows)) break;
     std::vector<double> f;
     try {
-      f = family_run(replica, family, pieces, theta.data(), state, &sensor.windows);
+      f = family_run(replica, family, pieces, theta.data(), state, &windows);
     } catch (const InvalidParameter&) {
       continue;
     }

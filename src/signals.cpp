@@ -4,8 +4,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
 #include <random>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Dense>
 
@@ -402,14 +408,55 @@ std::vector<double> displacement_the_models_see(std::span<const double> time,
   return estimate;
 }
 
-Remeasurement remeasurement_of(const Record& record) {
-  return {estimate_displacement_resolution(record.measured()),
-          record_derivative_windows(record.time, record.measured())};
+namespace {
+
+// The windows the rule chose on replicas of recent records (remeasured_replica).  A pure function
+// of the record's time and displacement and the seed, so a hit gives what computing them again
+// would; the records are kept as copies and compared exactly.
+class ReplicaWindows {
+ public:
+  std::optional<DerivativeWindows> find(const Record& r, std::uint64_t seed) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& e : entries_)
+      if (e->time == r.time && e->displacement == r.displacement)
+        for (const auto& [s, w] : e->windows)
+          if (s == seed) return w;
+    return std::nullopt;
+  }
+  void remember(const Record& r, std::uint64_t seed, const DerivativeWindows& w) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto& e : entries_)
+      if (e->time == r.time && e->displacement == r.displacement) {
+        e->windows.emplace_back(seed, w);
+        return;
+      }
+    if (entries_.size() == kRecords) entries_.pop_back();
+    auto e = std::make_unique<Entry>();
+    e->time = r.time;
+    e->displacement = r.displacement;
+    e->windows.emplace_back(seed, w);
+    entries_.push_front(std::move(e));
+  }
+
+ private:
+  static constexpr std::size_t kRecords = 4;
+  struct Entry {
+    std::vector<double> time, displacement;
+    std::vector<std::pair<std::uint64_t, DerivativeWindows>> windows;
+  };
+  std::mutex mutex_;
+  std::deque<std::unique_ptr<Entry>> entries_;
+};
+
+ReplicaWindows& replica_windows() {
+  static ReplicaWindows cache;
+  return cache;
 }
 
+}  // namespace
+
 bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica,
-                        const Remeasurement& sensor) {
-  const Resolution& res = sensor.resolution;
+                        const Resolution& res, DerivativeWindows* windows) {
   if (!res.quantum && !(res.noise > 0)) return false;
   std::mt19937_64 rng(seed);
   replica.time = record.time;
@@ -424,13 +471,26 @@ bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replic
     std::normal_distribution<double> noise(0.0, res.noise);
     for (double& v : x) v += noise(rng);
   }
-  const DerivativeWindows& w = sensor.windows;
-  // A quadratic through three samples passes them (displacement_the_models_see).
-  if (x.size() < 16 || (w.displacement_half_width <= 1 && w.displacement_degree == 2)) {
+  const std::size_t n = x.size();
+  DerivativeWindows w;
+  if (n >= 16) {
+    // What displacement_the_models_see does, with the rule's choice remembered.
+    if (auto known = replica_windows().find(record, seed)) {
+      w = *known;
+    } else {
+      w = choose_derivative_windows(replica.time, x);
+      replica_windows().remember(record, seed, w);
+    }
+  } else {
+    w = record_derivative_windows(replica.time, x);
+  }
+  if (windows) *windows = w;
+  // A quadratic through three samples passes them: the measured value itself.
+  if (n < 16 || (w.displacement_half_width <= 1 && w.displacement_degree == 2)) {
     replica.displacement = std::move(x);
     replica.measured_displacement.clear();
   } else {
-    replica.displacement.resize(x.size());
+    replica.displacement.resize(n);
     apply_local_displacement<double>(replica.time, x, w, replica.displacement);
     replica.measured_displacement = std::move(x);
   }
@@ -438,7 +498,8 @@ bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replic
 }
 
 bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica) {
-  return remeasured_replica(record, seed, replica, remeasurement_of(record));
+  return remeasured_replica(record, seed, replica,
+                            estimate_displacement_resolution(record.measured()));
 }
 
 }  // namespace friction

@@ -145,34 +145,25 @@ struct Resolution {
 };
 Resolution estimate_displacement_resolution(std::span<const double> displacement);
 
-/// What a second measurement of a record's motion by the same sensor shares with the record: the
-/// sensor's resolution (estimate_displacement_resolution of the displacement as measured) and the
-/// derivative windows the record was conditioned with (record_derivative_windows: chosen on the
-/// displacement as measured).  Computed once per record, used for every replica of it.
-struct Remeasurement {
-  Resolution resolution;
-  DerivativeWindows windows;
-};
-Remeasurement remeasurement_of(const Record& record);
-
 /// A replica of `record` measured again by its own displacement sensor: the displacement the models
 /// see, `r.displacement` (the best estimate of the motion there is), quantised again by the
 /// record's encoder step with a random phase (q round((x + u)/q) - u, u uniform in [0, q)), or,
 /// without a quantum, with white noise of the record's displacement noise added; then conditioned
-/// as the record was: the local polynomial of the record's own windows (`sensor.windows`) gives
-/// the displacement the models see.  The rule is not run again on the replica: it would pick
-/// windows within a sample or two of the record's (14-20 of 24 replicas of the bench records the
-/// same), on a flat optimum, and the replicas measure what the sensor's errors do to a fit, not
-/// the rule's choice; choosing them again was a tenth of a diagnosis.  Time, force and normal force
-/// are the record's.  What the models' input error does to a fit is measured on such replicas (the
-/// covariance of extension_families.hpp): the errors of a staircase depend on the motion
-/// (constant at rest, correlated over a slow presliding loop), which white noise of q / sqrt(12)
-/// would not reproduce.  `seed` picks the replica; the same seed gives the same replica.  False
-/// (the record unchanged) when the sensor has neither a quantum nor noise.
+/// as condition_record conditions (displacement_the_models_see: the window rule run on the
+/// replica).  Time, force and normal force are the record's.  What the models' input error does to
+/// a fit is measured on such replicas (the covariance of extension_families.hpp): the errors of a
+/// staircase depend on the motion (constant at rest, correlated over a slow presliding loop), which
+/// white noise of q / sqrt(12) would not reproduce.  `seed` picks the replica; the same seed gives
+/// the same replica.  False (the record unchanged) when the sensor has neither a quantum nor noise.
+///
+/// `sensor`: estimate_displacement_resolution(record.measured()), when the caller makes many
+/// replicas of one record.  `windows` (when given) receives the windows the rule chose on the
+/// replica, which a simulation of the replica needs (simulate_extended would choose them again).
+/// The rule's choice on a replica is remembered for the last few records (by their time and
+/// displacement, compared exactly) and the seed: a diagnosis asks for the same 24 replicas of its
+/// estimation record at every report, and choosing the windows was a tenth of it.
 bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica,
-                        const Remeasurement& sensor);
-/// The same, with the record's Remeasurement computed first (one replica; for many, compute it
-/// once with remeasurement_of).
+                        const Resolution& sensor, DerivativeWindows* windows = nullptr);
 bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica);
 
 /// Force noise standard deviation [N]: noise_level, or quantum / sqrt(12) when that is 0.
