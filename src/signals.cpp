@@ -411,30 +411,37 @@ std::vector<double> displacement_the_models_see(std::span<const double> time,
 namespace {
 
 // The windows the rule chose on replicas of recent records (remeasured_replica).  A pure function
-// of the record's time and displacement and the seed, so a hit gives what computing them again
-// would; the records are kept as copies and compared exactly.
+// of the record's time and displacement, the sensor the replica is measured with and the seed, so
+// a hit gives what computing them again would; the records are kept as copies and compared
+// exactly.
 class ReplicaWindows {
  public:
-  std::optional<DerivativeWindows> find(const Record& r, std::uint64_t seed) {
+  struct Key {
+    std::uint64_t seed;
+    double quantum;  // 0 without one
+    double noise;
+    bool operator==(const Key&) const = default;
+  };
+  std::optional<DerivativeWindows> find(const Record& r, const Key& key) {
     std::lock_guard<std::mutex> lock(mutex_);
     for (const auto& e : entries_)
       if (e->time == r.time && e->displacement == r.displacement)
-        for (const auto& [s, w] : e->windows)
-          if (s == seed) return w;
+        for (const auto& [k, w] : e->windows)
+          if (k == key) return w;
     return std::nullopt;
   }
-  void remember(const Record& r, std::uint64_t seed, const DerivativeWindows& w) {
+  void remember(const Record& r, const Key& key, const DerivativeWindows& w) {
     std::lock_guard<std::mutex> lock(mutex_);
     for (auto& e : entries_)
       if (e->time == r.time && e->displacement == r.displacement) {
-        e->windows.emplace_back(seed, w);
+        e->windows.emplace_back(key, w);
         return;
       }
     if (entries_.size() == kRecords) entries_.pop_back();
     auto e = std::make_unique<Entry>();
     e->time = r.time;
     e->displacement = r.displacement;
-    e->windows.emplace_back(seed, w);
+    e->windows.emplace_back(key, w);
     entries_.push_front(std::move(e));
   }
 
@@ -442,7 +449,7 @@ class ReplicaWindows {
   static constexpr std::size_t kRecords = 4;
   struct Entry {
     std::vector<double> time, displacement;
-    std::vector<std::pair<std::uint64_t, DerivativeWindows>> windows;
+    std::vector<std::pair<Key, DerivativeWindows>> windows;
   };
   std::mutex mutex_;
   std::deque<std::unique_ptr<Entry>> entries_;
@@ -475,11 +482,12 @@ bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replic
   DerivativeWindows w;
   if (n >= 16) {
     // What displacement_the_models_see does, with the rule's choice remembered.
-    if (auto known = replica_windows().find(record, seed)) {
+    const ReplicaWindows::Key key{seed, res.quantum.value_or(0.0), res.noise};
+    if (auto known = replica_windows().find(record, key)) {
       w = *known;
     } else {
       w = choose_derivative_windows(replica.time, x);
-      replica_windows().remember(record, seed, w);
+      replica_windows().remember(record, key, w);
     }
   } else {
     w = record_derivative_windows(replica.time, x);

@@ -349,8 +349,9 @@ TEST(Conditioning, ARemeasuredReplicaErrsAsTheRecordsOwnEncoder) {
 
 // A replica is conditioned as condition_record conditions a record: the rule's windows chosen on
 // the replica, the displacement the models see their local polynomial.  The windows are remembered
-// per record and seed (a diagnosis asks for the same replicas at every report): asked again, the
-// same replica; another record with the same seeds gets its own windows, not the first one's.
+// per record, sensor and seed (a diagnosis asks for the same replicas at every report): asked
+// again, the same replica; another record, or the same record through a coarser sensor, with the
+// same seeds gets its own windows, not the first one's.
 TEST(Conditioning, AReplicaIsConditionedByTheRuleAndItsWindowsAreRememberedPerRecord) {
   const double q = 2e-8;
   auto make = [&](double frequency) {
@@ -368,25 +369,34 @@ TEST(Conditioning, AReplicaIsConditionedByTheRuleAndItsWindowsAreRememberedPerRe
   };
   for (const Record& r : {make(1.3), make(7.0), make(1.3)}) {
     ASSERT_FALSE(r.measured_displacement.empty()) << "the rule kept the staircase";
-    const friction::Resolution sensor = friction::estimate_displacement_resolution(r.measured());
-    ASSERT_TRUE(sensor.quantum.has_value());
-    EXPECT_NEAR(*sensor.quantum, q, 1e-3 * q);
-    for (std::uint64_t seed = 1; seed <= 6; ++seed) {
-      Record a, b;
-      friction::DerivativeWindows wa, wb;
-      ASSERT_TRUE(friction::remeasured_replica(r, seed, a, sensor, &wa));
-      ASSERT_TRUE(friction::remeasured_replica(r, seed, b, sensor, &wb));
-      EXPECT_EQ(wa, wb) << seed;
-      EXPECT_EQ(a.displacement, b.displacement) << seed;
-      ASSERT_EQ(a.measured_displacement.size(), r.size()) << seed;
-      // The rule's own choice on this replica, computed here without the library's memory.
-      EXPECT_EQ(wa, friction::choose_derivative_windows(a.time, a.measured_displacement)) << seed;
-      std::vector<double> own(r.size());
-      friction::apply_local_displacement<double>(a.time, a.measured_displacement, wa, own);
-      EXPECT_EQ(a.displacement, own) << seed;
-      Record c;
-      ASSERT_TRUE(friction::remeasured_replica(r, seed, c));
-      EXPECT_EQ(c.displacement, a.displacement) << seed;
+    const friction::Resolution own_sensor =
+        friction::estimate_displacement_resolution(r.measured());
+    ASSERT_TRUE(own_sensor.quantum.has_value());
+    EXPECT_NEAR(*own_sensor.quantum, q, 1e-3 * q);
+    // A coarser sensor makes other replicas of the same record: not given the first one's windows.
+    friction::Resolution coarse = own_sensor;
+    coarse.quantum = 8 * q;
+    for (const friction::Resolution& sensor : {own_sensor, coarse}) {
+      for (std::uint64_t seed = 1; seed <= 6; ++seed) {
+        Record a, b;
+        friction::DerivativeWindows wa, wb;
+        ASSERT_TRUE(friction::remeasured_replica(r, seed, a, sensor, &wa));
+        ASSERT_TRUE(friction::remeasured_replica(r, seed, b, sensor, &wb));
+        EXPECT_EQ(wa, wb) << seed;
+        EXPECT_EQ(a.displacement, b.displacement) << seed;
+        ASSERT_EQ(a.measured_displacement.size(), r.size()) << seed;
+        // The rule's own choice on this replica, computed here without the library's memory.
+        EXPECT_EQ(wa, friction::choose_derivative_windows(a.time, a.measured_displacement))
+            << seed;
+        std::vector<double> own(r.size());
+        friction::apply_local_displacement<double>(a.time, a.measured_displacement, wa, own);
+        EXPECT_EQ(a.displacement, own) << seed;
+        if (sensor.quantum == own_sensor.quantum) {
+          Record c;
+          ASSERT_TRUE(friction::remeasured_replica(r, seed, c));
+          EXPECT_EQ(c.displacement, a.displacement) << seed;
+        }
+      }
     }
   }
 }
