@@ -174,8 +174,8 @@ class StructuredSlipCost final : public ceres::CostFunction {
       return out;
     };
     thread_local std::vector<JF> x;
-    thread_local std::vector<JO> dx, up, down;
-    x.resize(n), dx.resize(n), up.resize(n), down.resize(n);
+    thread_local std::vector<JO> dx, up, down, turn;
+    x.resize(n), dx.resize(n), up.resize(n), down.resize(n), turn.resize(n);
     JO a(0), level0(1);
     double* jt = jacobians[0];
     double* jr = jacobians[1];
@@ -197,6 +197,7 @@ class StructuredSlipCost final : public ceres::CostFunction {
             const JF& level = pieces_only.level();
             if (k == 0) level0 = lift(level);
             dx[k] = lift(c.dx);
+            turn[k] = lift(c.turn);
             up[k] = lift(level * (JF(1) + af));  // the slip limits of maxwell_slip.hpp's step
             down[k] = lift(level * (JF(1) - af));
             if (jt)
@@ -213,7 +214,11 @@ class StructuredSlipCost final : public ceres::CostFunction {
                          JO((JO(1) + a) * limit));
         delta *= level0;  // the state is given at level 1 (extensions.hpp: Initial state)
         for (std::size_t k = 0; k < n; ++k) {
-          delta = clamp(JO(delta + dx[k]), JO(-down[k] * limit), JO(up[k] * limit));
+          const JO lo = -down[k] * limit, hi = up[k] * limit;
+          if (turn[k].a != 0.0)  // motion.hpp, Turns between samples
+            delta = clamp(JO(clamp(JO(delta + turn[k]), lo, hi) + (dx[k] - turn[k])), lo, hi);
+          else
+            delta = clamp(JO(delta + dx[k]), lo, hi);
           const double g = -f.scale * k_i;  // d residual / d delta
           if (jt) {
             double* row = jt + k * cols;

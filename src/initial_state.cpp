@@ -20,11 +20,23 @@ Eigen::VectorXd single_trajectory(std::span<const double> x, double threshold, d
   double s = std::clamp(d, -threshold, threshold);
   out(0) = s;
   for (Eigen::Index t = 1; t < n; ++t) {
-    s = std::clamp(s + x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)],
-                   -threshold, threshold);
+    const std::size_t k = static_cast<std::size_t>(t);
+    const double dx = x[k] - x[k - 1], turn = turn_increment(x, k);
+    if (turn != 0.0)  // motion.hpp, Turns between samples
+      s = std::clamp(std::clamp(s + turn, -threshold, threshold) + (dx - turn), -threshold,
+                     threshold);
+    else
+      s = std::clamp(s + dx, -threshold, threshold);
     out(t) = s;
   }
   return out;
+}
+
+// The displacement at the extremum inside interval t, or x_t when there is none (motion.hpp,
+// Turns between samples): a range that covers a turn's peak has saturated the operators it covers.
+double extreme_of_interval(std::span<const double> x, std::size_t t) {
+  const double turn = turn_increment(x, t);
+  return turn != 0.0 ? x[t - 1] + turn : x[t];
 }
 
 // The end of the prefix [0, end) over which an operator of this threshold depends on its initial
@@ -33,8 +45,9 @@ Eigen::VectorXd single_trajectory(std::span<const double> x, double threshold, d
 std::size_t prefix_end(std::span<const double> x, double threshold, std::size_t taps) {
   double lo = x[0], hi = x[0];
   for (std::size_t t = 0; t < x.size(); ++t) {
-    lo = std::min(lo, x[t]);
-    hi = std::max(hi, x[t]);
+    const double e = extreme_of_interval(x, t);
+    lo = std::min({lo, x[t], e});
+    hi = std::max({hi, x[t], e});
     if (hi - lo >= 2.0 * threshold) return std::min(x.size(), t + taps + 1);
   }
   return x.size();
@@ -74,8 +87,10 @@ class OneOperator {
     run_min_.resize(n_);
     std::vector<double> breaks{-threshold, threshold};
     for (Eigen::Index t = 0; t < n_; ++t) {
-      run_max_(t) = t == 0 ? xi_(0) : std::max(run_max_(t - 1), xi_(t));
-      run_min_(t) = t == 0 ? xi_(0) : std::min(run_min_(t - 1), xi_(t));
+      // A turn inside interval t counts at sample t (the first sample after it).
+      const double e = extreme_of_interval(x, static_cast<std::size_t>(t)) - x[0];
+      run_max_(t) = t == 0 ? xi_(0) : std::max({run_max_(t - 1), xi_(t), e});
+      run_min_(t) = t == 0 ? xi_(0) : std::min({run_min_(t - 1), xi_(t), e});
       if (t == 0 || run_max_(t) > run_max_(t - 1)) breaks.push_back(threshold - run_max_(t));
       if (t == 0 || run_min_(t) < run_min_(t - 1)) breaks.push_back(-threshold - run_min_(t));
     }
@@ -522,6 +537,7 @@ FreeRun free_run_maxwell_slip(const MaxwellSlipParameters<double>& parameters,
       m.dx = x[k] - x[k - 1];
       m.dt = time[k] - time[k - 1];
       m.velocity = m.dt > 0.0 ? m.dx / m.dt : 0.0;
+      m.turn = turn_increment(x, k);
     }
     run.simulated[k] = model.step(m);
   }

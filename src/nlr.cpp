@@ -807,11 +807,16 @@ void dictionary_operators(Data& d) {
   Eigen::Index rows = 0;
   for (std::size_t t = 0; t < n; ++t) {
     const double dx = t > 0 ? d.x[t] - d.x[t - 1] : 0.0;
+    const double turn = turn_increment(d.x, t);
     const double up = d.limits ? d.limits->upper[t] : 1.0;
     const double down = d.limits ? d.limits->lower[t] : 1.0;
     for (std::size_t c = 0; c < p; ++c) {
       const double a = thr[cols[c].first];
-      z[c] = std::clamp(z[c] + dx, -down * a, up * a);
+      if (turn != 0.0)  // motion.hpp, Turns between samples
+        z[c] = std::clamp(std::clamp(z[c] + turn, -down * a, up * a) + (dx - turn), -down * a,
+                          up * a);
+      else
+        z[c] = std::clamp(z[c] + dx, -down * a, up * a);
     }
     if (t % stride != 0) continue;
     for (std::size_t c = 0; c < p; ++c) block(rows, static_cast<Eigen::Index>(c)) = z[c];
@@ -1224,7 +1229,8 @@ NlrResult identify(std::span<const double> time, std::span<const double> x,
     rep.estimation_simulated.resize(x.size());
     for (std::size_t k = 0; k < x.size(); ++k)
       rep.estimation_simulated[k] =
-          model.step(Motion<double>{k > 0 ? x[k] - x[k - 1] : 0.0, 0.0, 0.0});
+          model.step(Motion<double>{k > 0 ? x[k] - x[k - 1] : 0.0, 0.0, 0.0, 1.0, 0.0,
+                                    turn_increment(x, k)});
   }
   rep.estimation = compute_errors(force, rep.estimation_simulated);
   rep.noise_sigma = estimate_white_noise_sigma(force);

@@ -5,9 +5,36 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 
+#include "friction/motion.hpp"
+
 namespace friction::detail {
 
 namespace {
+
+// Motion::turn of every interval of x (motion.hpp, Turns between samples).
+std::vector<double> turns_of(std::span<const double> x) {
+  std::vector<double> out(x.size(), 0.0);
+  for (std::size_t k = 1; k < x.size(); ++k) out[k] = turn_increment(x, k);
+  return out;
+}
+
+// One operator's clamp with the flags of its sensitivities: `above`/`below` when it ended on a
+// bound.  Through the turn when there is one: the bound it last met is the one that counts.
+inline double step_operator(double v, double dx, double turn, double lo, double hi, bool& above,
+                            bool& below) {
+  if (turn != 0.0) {
+    const double u1 = v + turn;
+    const bool a1 = u1 > hi, b1 = u1 < lo;
+    const double u2 = (a1 ? hi : (b1 ? lo : u1)) + (dx - turn);
+    const bool a2 = u2 > hi, b2 = u2 < lo;
+    above = a2 || (!b2 && a1);
+    below = b2 || (!a2 && b1);
+    return a2 ? hi : (b2 ? lo : u2);
+  }
+  const double u = v + dx;
+  above = u > hi, below = u < lo;
+  return above ? hi : (below ? lo : u);
+}
 
 // operator_trajectories under SlipLimits: the same recursion with a box that moves per sample.
 void trajectories_under_limits(std::span<const double> thresholds,
@@ -24,14 +51,15 @@ void trajectories_under_limits(std::span<const double> thresholds,
   double* delta = out.delta.data();
   double* dt = sensitivities ? out.d_threshold.data() : nullptr;
   double* di = sensitivities ? out.d_initial.data() : nullptr;
+  const std::vector<double> turn = turns_of(x);
   for (Eigen::Index t = 0; t < n; ++t) {
     const std::size_t ts = static_cast<std::size_t>(t);
     const double dx = t > 0 ? x[ts] - x[ts - 1] : 0.0;
     const double up = limits.upper[ts], down = limits.lower[ts];
     for (std::size_t i = 0; i < m; ++i) {
-      const double u = v[i] + dx, hi = up * thresholds[i], lo = -down * thresholds[i];
-      const bool above = u > hi, below = u < lo;
-      v[i] = above ? hi : (below ? lo : u);
+      bool above = false, below = false;
+      v[i] = step_operator(v[i], dx, turn[ts], -down * thresholds[i], up * thresholds[i], above,
+                           below);
       const Eigen::Index at = static_cast<Eigen::Index>(i) * n + t;
       delta[at] = v[i];
       if (sensitivities) {
@@ -92,11 +120,20 @@ void operator_trajectories(std::span<const double> thresholds,
       v[i] = -limit[i], g_threshold[i] = -1.0, g_initial[i] = 0.0;
   }
   double* delta = out.delta.data();
+  const std::vector<double> turn = turns_of(x);
   if (!sensitivities) {
     for (Eigen::Index t = 0; t < n; ++t) {
       const double dx =
           t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
       double* row = delta + t;
+      if (const double o = turn[static_cast<std::size_t>(t)]; o != 0.0) {
+        for (std::size_t i = 0; i < m; ++i) {
+          const double u = std::clamp(v[i] + o, -limit[i], limit[i]) + (dx - o);
+          v[i] = u > limit[i] ? limit[i] : (u < -limit[i] ? -limit[i] : u);
+          row[static_cast<Eigen::Index>(i) * n] = v[i];
+        }
+        continue;
+      }
       for (std::size_t i = 0; i < m; ++i) {
         const double u = v[i] + dx;
         v[i] = u > limit[i] ? limit[i] : (u < -limit[i] ? -limit[i] : u);
@@ -111,9 +148,9 @@ void operator_trajectories(std::span<const double> thresholds,
     const double dx =
         t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
     for (std::size_t i = 0; i < m; ++i) {
-      const double u = v[i] + dx;
-      const bool above = u > limit[i], below = u < -limit[i];
-      v[i] = above ? limit[i] : (below ? -limit[i] : u);
+      bool above = false, below = false;
+      v[i] = step_operator(v[i], dx, turn[static_cast<std::size_t>(t)], -limit[i], limit[i], above,
+                           below);
       g_threshold[i] = above ? 1.0 : (below ? -1.0 : g_threshold[i]);
       g_initial[i] = above || below ? 0.0 : g_initial[i];
       const Eigen::Index at = static_cast<Eigen::Index>(i) * n + t;

@@ -77,7 +77,8 @@ TEST(InitialState, SpringFilterFormWithLags) {
   std::vector<double> f(x.size());
   std::vector<double> prev = d0;
   for (std::size_t k = 0; k < x.size(); ++k) {
-    ops.step(Motion<double>{k > 0 ? x[k] - x[k - 1] : 0.0, 0.0, 0.0});
+    ops.step(Motion<double>{k > 0 ? x[k] - x[k - 1] : 0.0, 0.0, 0.0, 1.0, 0.0,
+                            turn_increment(std::span<const double>(x), k)});
     const auto d = ops.deflections();
     f[k] = 0;
     for (std::size_t i = 0; i < 2; ++i)

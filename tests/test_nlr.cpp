@@ -229,7 +229,8 @@ TEST(Nlr, OperatorTrajectoriesAreTheJetRunOfTheModel) {
   int saturated = 0;
   for (std::size_t t = 0; t < rec.size(); ++t) {
     const double dx = t > 0 ? rec.displacement[t] - rec.displacement[t - 1] : 0.0;
-    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0)});
+    const double turn = turn_increment(std::span<const double>(rec.displacement), t);
+    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0), Jet(1.0), Jet(0.0), Jet(turn)});
     for (std::size_t i = 0; i < thr.size(); ++i) {
       const Jet& j = model.deflections()[i];
       const auto ti = static_cast<Eigen::Index>(t), ii = static_cast<Eigen::Index>(i);
@@ -272,7 +273,8 @@ TEST(Nlr, OperatorTrajectoriesUnderLimitsAreTheJetRunOfTheModel) {
   int at_upper = 0, at_lower = 0;
   for (std::size_t t = 0; t < rec.size(); ++t) {
     const double dx = t > 0 ? rec.displacement[t] - rec.displacement[t - 1] : 0.0;
-    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0), Jet(level[t]), Jet(a)});
+    const double turn = turn_increment(std::span<const double>(rec.displacement), t);
+    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0), Jet(level[t]), Jet(a), Jet(turn)});
     for (std::size_t i = 0; i < thr.size(); ++i) {
       const Jet& j = model.deflections()[i];
       const auto ti = static_cast<Eigen::Index>(t), ii = static_cast<Eigen::Index>(i);

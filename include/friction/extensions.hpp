@@ -365,6 +365,7 @@ struct ExtendedMotion {
   T normal{0};        ///< normal force N [N], when has_normal
   bool has_normal = false;
   T level{1};  ///< external slip-force scale factor, multiplied with the level pieces
+  T turn{0};   ///< increment to an extremum inside the interval (Motion::turn); 0: none
 };
 
 namespace detail {
@@ -473,6 +474,7 @@ class Extended {
     time_ += dt;
     c.x = x_;
     c.dx = m.dx;
+    c.turn = m.turn;
     c.velocity = m.velocity;
     c.piece_velocity = m.velocity;  // causal: the backward difference
     c.dt = m.dt;
@@ -499,6 +501,7 @@ class Extended {
       delayed_x_started_ = true;
     }
     d.dx = d.x - delayed_x_;
+    d.turn = T(0);  // causal: the delayed displacement's next sample is not known yet
     delayed_x_ = d.x;
     d.velocity = value_of(c.dt) > 0.0 ? T(d.dx / c.dt) : T(0);
     d.piece_velocity = d.velocity;
@@ -555,7 +558,7 @@ class Extended {
     }
 
     const T asymmetry = p_.asymmetry ? p_.asymmetry->asymmetry : T(0);
-    const T base_force = base_.step(Motion<T>{c.dx, c.velocity, c.dt, level, asymmetry});
+    const T base_force = base_.step(Motion<T>{c.dx, c.velocity, c.dt, level, asymmetry, c.turn});
 
     T force = base_force;
     if (p_.viscous) force += p_.viscous->viscous * v;
@@ -849,6 +852,7 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
     ExtendedMotion<T> c;
     c.x = xs[k];
     c.dx = k > 0 ? T(xs[k] - xs[k - 1]) : T(0);
+    c.turn = turn_increment(std::span<const T>(xs), k);
     c.velocity = k > 0 ? T(c.dx / (time[k] - time[k - 1])) : T(0);
     c.piece_velocity = v[k];
     c.piece_velocity_at_instant = true;

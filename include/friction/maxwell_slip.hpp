@@ -114,6 +114,16 @@ class MaxwellSlip {
     const std::size_t n = deflection_.size();
     T force(0);
     const T up = m.level * (T(1) + m.asymmetry), down = m.level * (T(1) - m.asymmetry);
+    if (value_of(m.turn) != 0.0) {
+      // Through the extremum inside the interval (motion.hpp, Turns between samples).
+      const T back = m.dx - m.turn;
+      for (std::size_t i = 0; i < n; ++i) {
+        const T lo = -down * limit[i], hi = up * limit[i];
+        delta[i] = clamp(T(clamp(T(delta[i] + m.turn), lo, hi) + back), lo, hi);
+        force += k[i] * delta[i];
+      }
+      return force;
+    }
     for (std::size_t i = 0; i < n; ++i) {
       delta[i] = clamp(T(delta[i] + m.dx), T(-down * limit[i]), T(up * limit[i]));
       force += k[i] * delta[i];

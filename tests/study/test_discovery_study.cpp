@@ -835,11 +835,37 @@ int expect_exact_with_parameters_within(std::uint64_t seed, const std::string& i
 // 1e5) and gave the asymmetry, estimated to three digits, no standard error: that operator's
 // columns, ~1e-14 N, scaled to unit norm, made the covariance rank-deficient along the piece.
 // Every parameter of the named effects must have a standard error and lie within 3 of them.
+//
+// On this record (a multisine at a constant level) the diagnosis may as well name the offset: at a
+// constant level the two are one force, and the finding says so (ambiguous_with, which the
+// study's scoring accepts here).  Since the turns between samples (motion.hpp) it names the
+// offset, and the asymmetry's standard error is judged on the fit a user gets by asking for it,
+// `identify --extension asymmetry`, on the same files.
 TEST(DiscoveryStudy, APieceBesideAnOperatorTheForceDoesNotFeelHasAStandardError) {
-  // asymmetry
-  EXPECT_EQ(expect_exact_with_parameters_within(4142990654516801226ULL, "asymmetry-3",
-                                                "standard-error-regression", 3.0, false),
-            1);
+  const std::uint64_t seed = 4142990654516801226ULL;
+  const std::string id = "asymmetry-3";
+  const std::optional<RecordSpec> spec = plan_record(seed, id);
+  ASSERT_TRUE(spec) << id << " is not in the plan of seed " << seed;
+  const fs::path dir = fresh_output_directory("standard-error-regression");
+  const Outcome o = run_record(*spec, dir);
+  ASSERT_TRUE(o.error.empty()) << o.error;
+  EXPECT_TRUE(o.exact()) << o.summary;
+  const fs::path rd = dir / "records" / id;
+  std::vector<std::string> args = {"identify",
+                                   "--model",
+                                   "maxwell-slip",
+                                   "--data",
+                                   (rd / "estimation.csv").string(),
+                                   "--validate",
+                                   (rd / "validation.csv").string(),
+                                   "--extension",
+                                   "asymmetry",
+                                   "--format",
+                                   "json"};
+  for (auto& a : split_options(make_record(*spec).read_options())) args.push_back(a);
+  ASSERT_EQ(run_cli(args, (rd / "told.json").string(), (rd / "told.err").string()), 0)
+      << read_file((rd / "told.err").string());
+  EXPECT_EQ(expect_told_parameters_within(rd, 3.0), 1);  // asymmetry
 }
 
 // A regression test (label long, its own record): `stribeck+position-dependence` at seed
