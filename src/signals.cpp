@@ -394,18 +394,30 @@ const Conditioning& condition_record(Record& record, const ConditioningOptions& 
   return record.conditioning;
 }
 
+namespace {
+
+// The displacement the models see with windows already chosen: empty when they pass the samples
+// (a quadratic through three samples is the measured value itself), else the local polynomial's
+// value at every t_k.  The record's conditioning and its replicas' (remeasured_replica) share it.
+std::vector<double> displacement_with_windows(std::span<const double> time,
+                                              std::span<const double> measured,
+                                              const DerivativeWindows& w) {
+  if (measured.size() < 16 || (w.displacement_half_width <= 1 && w.displacement_degree == 2))
+    return {};
+  std::vector<double> estimate(measured.size());
+  apply_local_displacement<double>(time, measured, w, estimate);
+  return estimate;
+}
+
+}  // namespace
+
 std::vector<double> displacement_the_models_see(std::span<const double> time,
                                                 std::span<const double> measured,
                                                 DerivativeWindows* windows) {
-  const std::size_t n = measured.size();
-  if (n < 16) return {};
+  if (measured.size() < 16) return {};
   const DerivativeWindows w = choose_derivative_windows(time, measured);
   if (windows) *windows = w;
-  // A quadratic through three samples passes them: the measured value itself.
-  if (w.displacement_half_width <= 1 && w.displacement_degree == 2) return {};
-  std::vector<double> estimate(n);
-  apply_local_displacement<double>(time, measured, w, estimate);
-  return estimate;
+  return displacement_with_windows(time, measured, w);
 }
 
 namespace {
@@ -493,13 +505,12 @@ bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replic
     w = record_derivative_windows(replica.time, x);
   }
   if (windows) *windows = w;
-  // A quadratic through three samples passes them: the measured value itself.
-  if (n < 16 || (w.displacement_half_width <= 1 && w.displacement_degree == 2)) {
+  std::vector<double> estimate = displacement_with_windows(replica.time, x, w);
+  if (estimate.empty()) {
     replica.displacement = std::move(x);
     replica.measured_displacement.clear();
   } else {
-    replica.displacement.resize(n);
-    apply_local_displacement<double>(replica.time, x, w, replica.displacement);
+    replica.displacement = std::move(estimate);
     replica.measured_displacement = std::move(x);
   }
   return true;
