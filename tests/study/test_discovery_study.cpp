@@ -28,8 +28,9 @@
 // diagnosis has met at every seed run since 7caf809 (seven seeds, ten runs: exact 57-61/62, 0-1
 // no-effect records with a finding, median |z| 0.51-0.79): exact records, false findings,
 // median |z|; and the LuGre baseline's exact records.
-// Coverage and "told the effect" still fail at some seeds (README, Status); they are reported,
-// and asserted only with FRICTION_STUDY_ASSERT=1.
+// "Told the effect" is asserted on every run of the whole plan too (ToldTheEffectItFitsIt).
+// Coverage still fails at some seeds (README, Status: 100 % at one of four seeds, above the 99 %
+// the criterion allows); it is reported, and asserted only with FRICTION_STUDY_ASSERT=1.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <spawn.h>
@@ -727,7 +728,10 @@ TEST(DiscoveryStudy, ToldTheEffectItFitsIt) {
      << "(>= 95 % required).\n";
   std::ofstream(dir / "told.md") << md.str();
   std::printf("\n%s\nWritten: %s\n", md.str().c_str(), (dir / "told.md").c_str());
-  if (assert_criteria() && whole_plan()) {
+  // Asserted on every run of the whole plan since the turns between samples (57b35d5): 24/24,
+  // 25/26, 25/26 and 29/29 at the four seeds run with them (4b6776e's and dfae439's commit seeds,
+  // 5551212, 918273645).
+  if (whole_plan()) {
     EXPECT_GE(passed, static_cast<int>(std::ceil(0.95 * eligible))) << passed << "/" << eligible;
   }
 }
