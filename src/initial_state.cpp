@@ -345,7 +345,8 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
 
   // Buffers of the refinements, reused by every start.
   const Eigen::Index mi = static_cast<Eigen::Index>(m);
-  Eigen::MatrixXd contribution(y.size(), mi), jacobian;
+  Eigen::MatrixXd contribution(y.size(), mi), jacobian, gram(mi, mi);
+  Eigen::VectorXd jtr(mi);
   Eigen::VectorXd total, yi(y.size()), ci(y.size()), r;
   auto refine = [&](std::vector<double> best, int rounds = 4, int sweeps = 4,
                     int gn_iterations = 8) {
@@ -403,7 +404,22 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
           lo(i) = -thresholds[static_cast<std::size_t>(i)] - best[static_cast<std::size_t>(i)];
           hi(i) = thresholds[static_cast<std::size_t>(i)] - best[static_cast<std::size_t>(i)];
         }
-        const Eigen::VectorXd step = detail::box_least_squares(jacobian, r, lo, hi);
+        // Column i is zero beyond operator i's prefix, so the normal equations need only
+        // sum_ij min(T_i, T_j) products: on records where one operator's threshold is the
+        // travel (a linear spring, prefix = the record) the dense N x M^2 product cost several
+        // times the rest of the estimate.  An ill-conditioned Gram matrix falls back to the QR.
+        for (Eigen::Index i = 0; i < mi; ++i) {
+          const Eigen::Index ti = own[static_cast<std::size_t>(i)];
+          jtr(i) = jacobian.col(i).head(ti).dot(r.head(ti));
+          for (Eigen::Index j = 0; j <= i; ++j) {
+            const Eigen::Index tij = std::min(ti, own[static_cast<std::size_t>(j)]);
+            gram(i, j) = jacobian.col(i).head(tij).dot(jacobian.col(j).head(tij));
+          }
+        }
+        Eigen::VectorXd step;
+        double step_rss = 0.0;
+        if (!detail::box_least_squares_gram(gram, jtr, r.squaredNorm(), lo, hi, step, step_rss))
+          step = detail::box_least_squares(jacobian, r, lo, hi);
         if (step.norm() <= 1e-14 * dmax) break;
         bool accepted = false;
         for (double alpha = 1.0; alpha > 1e-4; alpha *= 0.25) {
