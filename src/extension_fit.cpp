@@ -501,7 +501,9 @@ std::vector<double> plain_relative_state(const MaxwellSlipParameters<double>& ba
   if (ext.viscous || ext.offset || ext.inertia || ext.asymmetry) {
     std::vector<double> v(r.size()), a(r.size());
     apply_local_derivatives<double>(r.time, r.measured(), windows, v, a);
-    const double f0 = ext.reference_force > 0 ? ext.reference_force : base.sliding_force();
+    // The shift moves operator i's box by a L0 Delta_i: its sum is a L0 times the base's own
+    // sliding force, whatever reference force the level pieces use (extensions.hpp).
+    const double f0 = base.sliding_force();
     for (std::size_t k = 0; k < r.size(); ++k) {
       if (ext.viscous) f[k] -= ext.viscous->viscous * v[k];
       if (ext.offset) f[k] -= ext.offset->offset;

@@ -177,13 +177,17 @@ PiecesAlongRun pieces_along_run(const Record& r, const ExtendedSlipFit& cur) {
 
 // The force with the fitted pieces taken out: added terms subtracted, the asymmetry's shift of the
 // slip limits too (a L F0: exact while the level is constant, extensions.hpp), divided by the level
-// along the fitted model's run.  The restart's order selection runs on it: on the force as
+// along the fitted model's run.  The shift moves each operator's box by a L Delta_i, so its F0 is
+// the base's own sum k_i Delta_i, not the reference force the level pieces are defined against:
+// the two differ once the base has been refitted (by 4 % on a discovery-study record whose first
+// base had a linear spring at the travel), and a force biased by a (F0ref - F0own), one noise
+// sigma there, made the restart's NLR merge two operators (2.2 times the floor, against 1.0 for
+// NLR on the force without the bias).  The restart's order selection runs on it: on the force as
 // recorded, an unmodelled asymmetry or offset dominates the misfit and BIC stops at too few
 // operators (3 for a 10-element system on a discovery-study record, 5 times the floor).
 std::vector<double> divided_force(const Record& r, const ExtendedSlipFit& cur,
                                   const PiecesAlongRun& run) {
-  const double f0 =
-      cur.ext.reference_force > 0 ? cur.ext.reference_force : cur.base.sliding_force();
+  const double f0 = cur.base.sliding_force();
   const double asymmetry = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
   std::vector<double> corrected(r.size());
   for (std::size_t k = 0; k < r.size(); ++k)
