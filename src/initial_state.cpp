@@ -407,7 +407,12 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
         // Column i is zero beyond operator i's prefix, so the normal equations need only
         // sum_ij min(T_i, T_j) products: on records where one operator's threshold is the
         // travel (a linear spring, prefix = the record) the dense N x M^2 product cost several
-        // times the rest of the estimate.  An ill-conditioned Gram matrix falls back to the QR.
+        // times the rest of the estimate.  The columns are (for Maxwell Slip) Theta_i until
+        // operator i first saturates: two operators that saturate at the same sample have equal
+        // columns and singular normal equations, which the QR below resolves at N M^2 cost.  A
+        // damping of 1e-8 of the diagonal (a Levenberg-Marquardt step; the line search below
+        // judges it on the cost) keeps them solvable, and a zero column (saturated from the
+        // first sample) gets no step.
         for (Eigen::Index i = 0; i < mi; ++i) {
           const Eigen::Index ti = own[static_cast<std::size_t>(i)];
           jtr(i) = jacobian.col(i).head(ti).dot(r.head(ti));
@@ -415,6 +420,7 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
             const Eigen::Index tij = std::min(ti, own[static_cast<std::size_t>(j)]);
             gram(i, j) = jacobian.col(i).head(tij).dot(jacobian.col(j).head(tij));
           }
+          gram(i, i) = gram(i, i) > 0.0 ? gram(i, i) * (1.0 + 1e-8) : 1.0;
         }
         Eigen::VectorXd step;
         double step_rss = 0.0;
@@ -485,6 +491,7 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
   if (options.valley_points > 1 && m > 1) {
     const Eigen::VectorXd theta = filter.rowwise().sum();
     const double theta_scale = theta.cwiseAbs().maxCoeff();
+    Eigen::VectorXd others, line_r, line_i(y.size()), line_j(y.size());
     for (int pass = 0; pass < 3; ++pass) {
       bool improved = false;
       for (std::size_t i = 0; i < m; ++i)
@@ -501,6 +508,17 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
           const auto [aj, bj] = range(-tj, -thresholds[j] - b[j], thresholds[j] - b[j]);
           const double lo = std::max(ai, aj), hi = std::min(bi, bj);
           if (!(hi > lo)) continue;
+          // Only d_i and d_j move along the line, and each changes the force over its own
+          // prefix only: the points are compared over the longer of the two prefixes, with the
+          // residual of the other operators kept (not M prefixes and the whole record per point;
+          // an operator at the travel made every point cost the record).
+          const Eigen::Index pi = own[i], pj = own[j], pij = std::max(pi, pj);
+          predict(b, force);
+          others = y.head(pij) - force.head(pij);
+          single[i].contribution(b[i], line_i.head(pi), false);
+          single[j].contribution(b[j], line_j.head(pj), false);
+          others.head(pi) += line_i.head(pi);
+          others.head(pj) += line_j.head(pj);
           double best_cost = std::numeric_limits<double>::infinity();
           std::vector<double> best_point, trial = b;
           for (std::size_t g = 0; g < options.valley_points; ++g) {
@@ -508,7 +526,12 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
                                       static_cast<double>(options.valley_points - 1);
             trial[i] = std::clamp(b[i] + s / ti, -thresholds[i], thresholds[i]);
             trial[j] = std::clamp(b[j] - s / tj, -thresholds[j], thresholds[j]);
-            const double c = cost_of(trial);
+            single[i].contribution(trial[i], line_i.head(pi), false);
+            single[j].contribution(trial[j], line_j.head(pj), false);
+            line_r = others;
+            line_r.head(pi) -= line_i.head(pi);
+            line_r.head(pj) -= line_j.head(pj);
+            const double c = line_r.squaredNorm();  // + the same remainder for every point
             if (c < best_cost) best_cost = c, best_point = trial;
           }
           if (best_point == b) continue;
