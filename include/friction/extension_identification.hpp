@@ -25,6 +25,9 @@
 //    when its BIC is lower (M may differ).  That took the case above to 0.0029 %.  The price is a
 //    second NLR identification (on a 6741-sample `generate` record with viscous 40 N s/m and an
 //    offset of 0.05 N the pieces, restart included, took 4.3 s of the 12.7 s that identify took).
+//    A restart that was kept is repeated from its own pieces, while BIC falls (twice at most):
+//    the first one's force still carries the sequential pieces' errors, and a piece off by about
+//    one noise sigma was enough for NLR to merge two operators of close thresholds.
 //
 //    Order growth.  The restart's order selection runs on a corrected force, and dividing by the
 //    level is exact only for operators at their slip limits: an operator that sticks while the
