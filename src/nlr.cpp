@@ -26,6 +26,7 @@ namespace {
 
 struct Data {
   std::span<const double> x;
+  std::vector<double> turns;  // detail::turns_of(x), once: every evaluation steps through them
   std::span<const double> force;
   Eigen::VectorXd y;  // force / scale
   double scale = 1;   // rms of the force
@@ -241,7 +242,7 @@ const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<c
     std::vector<double> init(m);
     for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
     const bool sensitivities = with_jacobian || ws.eager;
-    detail::operator_trajectories(thr, init, d.x, sensitivities, traj, d.limits);
+    detail::operator_trajectories(thr, init, d.x, sensitivities, traj, d.limits, d.turns);
     const Eigen::VectorXd lo = Eigen::VectorXd::Zero(mi);
     const Eigen::VectorXd hi =
         Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity());
@@ -328,8 +329,9 @@ class JointCost final : public ceres::CostFunction {
     }
     std::vector<double> init(m);
     for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
-    const auto traj =
-        detail::operator_trajectories(thr, init, d_.x, jacobians != nullptr, d_.limits);
+    detail::OperatorTrajectories traj;
+    detail::operator_trajectories(thr, init, d_.x, jacobians != nullptr, traj, d_.limits,
+                                  d_.turns);
     Eigen::VectorXd k(m_);
     for (int i = 0; i < m_; ++i) k(i) = std::exp(p[0][i]);
     const Eigen::Index n = traj.delta.rows();
@@ -401,8 +403,9 @@ ceres::Solver::Options solver_options(const NlrOptions& o, std::size_t samples) 
 // estimate for those parameters.
 std::vector<double> start_rho(const Data& d, const std::vector<double>& thr) {
   const std::size_t m = thr.size();
-  const auto traj =
-      detail::operator_trajectories(thr, std::vector<double>(m, 0.0), d.x, false, d.limits);
+  detail::OperatorTrajectories traj;
+  detail::operator_trajectories(thr, std::vector<double>(m, 0.0), d.x, false, traj, d.limits,
+                                d.turns);
   const Eigen::Index mi = static_cast<Eigen::Index>(m);
   const Eigen::VectorXd k = detail::box_least_squares(
       traj.delta, d.y, Eigen::VectorXd::Zero(mi),
@@ -696,7 +699,7 @@ bool threshold_moves(
       std::vector<double> t(b), init(b);
       for (std::size_t jj = 0; jj < b; ++jj)
         t[jj] = cands[j0 + jj].threshold, init[jj] = cands[j0 + jj].rho * t[jj];
-      detail::operator_trajectories(t, init, d.x, false, cand, d.limits);
+      detail::operator_trajectories(t, init, d.x, false, cand, d.limits, d.turns);
       cross.noalias() = phi.transpose() * cand.delta;
       const Eigen::VectorXd cc = cand.delta.colwise().squaredNorm().transpose();
       const Eigen::VectorXd cy = cand.delta.transpose() * d.y;
@@ -807,7 +810,7 @@ void dictionary_operators(Data& d) {
   Eigen::Index rows = 0;
   for (std::size_t t = 0; t < n; ++t) {
     const double dx = t > 0 ? d.x[t] - d.x[t - 1] : 0.0;
-    const double turn = turn_increment(d.x, t);
+    const double turn = d.turns[t];
     const double up = d.limits ? d.limits->upper[t] : 1.0;
     const double down = d.limits ? d.limits->lower[t] : 1.0;
     for (std::size_t c = 0; c < p; ++c) {
@@ -1075,6 +1078,7 @@ void nlr_projected_residual(std::span<const double> x, std::span<const double> f
                  "nlr: threshold bounds must satisfy 0 < lower < upper");
   Data d;
   d.x = x;
+  d.turns = detail::turns_of(x);
   d.force = force;
   const Eigen::Map<const Eigen::VectorXd> f(force.data(), static_cast<Eigen::Index>(force.size()));
   d.scale = std::sqrt(f.squaredNorm() / static_cast<double>(f.size()));
@@ -1110,6 +1114,7 @@ NlrResult identify(std::span<const double> time, std::span<const double> x,
 
   Data d;
   d.x = x;
+  d.turns = detail::turns_of(x);
   d.force = force;
   d.limits = limits;
   const Eigen::Map<const Eigen::VectorXd> f(force.data(), static_cast<Eigen::Index>(force.size()));

@@ -9,14 +9,13 @@
 
 namespace friction::detail {
 
-namespace {
-
-// Motion::turn of every interval of x (motion.hpp, Turns between samples).
 std::vector<double> turns_of(std::span<const double> x) {
   std::vector<double> out(x.size(), 0.0);
   for (std::size_t k = 1; k < x.size(); ++k) out[k] = turn_increment(x, k);
   return out;
 }
+
+namespace {
 
 // One operator's clamp with the flags of its sensitivities: `above`/`below` when it ended on a
 // bound.  Through the turn when there is one: the bound it last met is the one that counts.
@@ -40,7 +39,7 @@ inline double step_operator(double v, double dx, double turn, double lo, double 
 void trajectories_under_limits(std::span<const double> thresholds,
                                std::span<const double> initial, std::span<const double> x,
                                bool sensitivities, OperatorTrajectories& out,
-                               const SlipLimits& limits) {
+                               const SlipLimits& limits, std::span<const double> turn) {
   const std::size_t m = thresholds.size();
   const Eigen::Index n = static_cast<Eigen::Index>(x.size());
   FRICTION_CHECK(limits.upper.size() == x.size() && limits.lower.size() == x.size(),
@@ -51,7 +50,6 @@ void trajectories_under_limits(std::span<const double> thresholds,
   double* delta = out.delta.data();
   double* dt = sensitivities ? out.d_threshold.data() : nullptr;
   double* di = sensitivities ? out.d_initial.data() : nullptr;
-  const std::vector<double> turn = turns_of(x);
   for (Eigen::Index t = 0; t < n; ++t) {
     const std::size_t ts = static_cast<std::size_t>(t);
     const double dx = t > 0 ? x[ts] - x[ts - 1] : 0.0;
@@ -89,7 +87,7 @@ void check_slip_limits(const SlipLimits& limits, std::size_t samples) {
 void operator_trajectories(std::span<const double> thresholds,
                            std::span<const double> initial, std::span<const double> x,
                            bool sensitivities, OperatorTrajectories& out,
-                           const SlipLimits* limits) {
+                           const SlipLimits* limits, std::span<const double> turns) {
   const std::size_t m = thresholds.size();
   FRICTION_CHECK(initial.size() == m, "Maxwell Slip: ", initial.size(), " initial deflections for ",
                  m, " operators");
@@ -103,8 +101,15 @@ void operator_trajectories(std::span<const double> thresholds,
   for (std::size_t i = 0; i < m; ++i)
     FRICTION_CHECK(std::isfinite(thresholds[i]) && thresholds[i] > 0.0, "Maxwell Slip: threshold[",
                    i, "] = ", thresholds[i], " m must be finite and > 0");
+  FRICTION_CHECK(turns.empty() || turns.size() == x.size(), "Maxwell Slip: ", turns.size(),
+                 " turns for ", x.size(), " samples");
+  std::vector<double> own_turns;
+  if (turns.empty()) {
+    own_turns = turns_of(x);
+    turns = own_turns;
+  }
   if (limits) {
-    trajectories_under_limits(thresholds, initial, x, sensitivities, out, *limits);
+    trajectories_under_limits(thresholds, initial, x, sensitivities, out, *limits, turns);
     return;
   }
   // The recursion of one operator is a chain of dependent additions and clamps (about 12 cycles
@@ -120,7 +125,7 @@ void operator_trajectories(std::span<const double> thresholds,
       v[i] = -limit[i], g_threshold[i] = -1.0, g_initial[i] = 0.0;
   }
   double* delta = out.delta.data();
-  const std::vector<double> turn = turns_of(x);
+  const std::span<const double> turn = turns;
   if (!sensitivities) {
     for (Eigen::Index t = 0; t < n; ++t) {
       const double dx =

@@ -63,15 +63,22 @@ void check_slip_limits(const SlipLimits& limits, std::size_t samples);
 /// upper bound the derivatives are (1, 0), at the lower bound (-1, 0), and in between they are
 /// carried over unchanged.  The same numbers, bit for bit (test_nlr compares the two), without
 /// the Jet arithmetic: the identification evaluates this thousands of times.
+///
+/// `turns`, when not empty, is turns_of(x) computed once by a caller that evaluates the same
+/// displacement many times (a fit): the turns depend on x alone.
 void operator_trajectories(std::span<const double> thresholds,
                            std::span<const double> initial, std::span<const double> x,
                            bool sensitivities, OperatorTrajectories& out,
-                           const SlipLimits* limits = nullptr);
+                           const SlipLimits* limits = nullptr,
+                           std::span<const double> turns = {});
 
 OperatorTrajectories operator_trajectories(std::span<const double> thresholds,
                                            std::span<const double> initial,
                                            std::span<const double> x, bool sensitivities,
                                            const SlipLimits* limits = nullptr);
+
+/// Motion::turn of every interval of x (motion.hpp, Turns between samples); entry 0 is 0.
+std::vector<double> turns_of(std::span<const double> x);
 
 /// NLR (identify_maxwell_slip) with its operators under `limits`: the force is sum k_i delta_i
 /// with delta_i clamped to the moving box of SlipLimits.  The starts' initial states come from

@@ -28,9 +28,12 @@
 // diagnosis has met at every seed run since 7caf809 (seven seeds, ten runs: exact 57-61/62, 0-1
 // no-effect records with a finding, median |z| 0.51-0.79): exact records, false findings,
 // median |z|; and the LuGre baseline's exact records.
-// "Told the effect" is asserted on every run of the whole plan too (ToldTheEffectItFitsIt).
-// Coverage still fails at some seeds (README, Status: 100 % at one of four seeds, above the 99 %
-// the criterion allows); it is reported, and asserted only with FRICTION_STUDY_ASSERT=1.
+// "Told the effect" is asserted on every run of the whole plan too (ToldTheEffectItFitsIt), and
+// so is coverage's lower bound (>= 85 %, every parameter with a standard error).  Its upper bound
+// (<= 99 %) is asserted only with FRICTION_STUDY_ASSERT=1: with ~40 intervals, all covered happens
+// to a method of exactly 95 % coverage with probability 0.95^40 = 13 %, so as a CI assertion it
+// would fail one run in eight on chance alone (and it read 100 % at 2 of the 7 seeds run since
+// the turns between samples, 93-95 % at the others; README, Status).
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <spawn.h>
@@ -421,8 +424,12 @@ struct Criteria {
   bool exact_ok() const { return exact >= required_exact; }
   bool false_ok() const { return no_effect_with_findings <= 2; }
   double coverage() const { return intervals ? double(covered) / double(intervals) : NAN; }
-  bool coverage_ok() const {
-    return intervals > 0 && coverage() >= 0.85 && coverage() <= 0.99 && without_standard_error == 0;
+  bool coverage_ok() const { return coverage_floor_ok() && coverage() <= 0.99; }
+  // The side that catches intervals too narrow to trust: >= 85 %, and every one has a standard
+  // error.  At exactly 95 % coverage and ~40 intervals it fails on chance about once in 70 runs
+  // (7 or more misses in 40: binomial, 1.4 %).
+  bool coverage_floor_ok() const {
+    return intervals > 0 && coverage() >= 0.85 && without_standard_error == 0;
   }
   bool z_ok() const { return median_abs_z <= 1.2; }
 };
@@ -598,6 +605,9 @@ TEST(DiscoveryStudy, EveryEffectPairsAndNoEffectOnAnNlrBaseline) {
     EXPECT_TRUE(c.exact_ok()) << c.exact << "/" << c.records << " exact";
     EXPECT_TRUE(c.false_ok()) << c.no_effect_with_findings << " no-effect records with findings";
     EXPECT_TRUE(c.z_ok()) << c.median_abs_z;
+    EXPECT_TRUE(c.coverage_floor_ok())
+        << c.covered << "/" << c.intervals << " covered, " << c.without_standard_error
+        << " without a standard error";
     if (assert_criteria()) {
       EXPECT_TRUE(c.coverage_ok()) << c.covered << "/" << c.intervals;
     }
