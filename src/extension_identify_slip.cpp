@@ -302,9 +302,10 @@ ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
   // The growth steps run only the NLR (on the divided force or under the level) whose fit won
   // the restart: both at every step made `identify` 40 % slower on the tribometer.
   std::optional<bool> under_level;
+  bool kept = false;
   if (auto g = fit_from_nlr(r, cur, o, m, under_level); g && fit_bic(r, *g) < fit_bic(r, best)) {
     best = std::move(*g);
-    restarted = true;
+    kept = restarted = true;
   }
   // Again from the restarted fit, while its BIC falls (at most twice more): the first restart's
   // NLR runs on the force without the pieces of the sequential fit, which carry the misfit of a
@@ -313,7 +314,7 @@ ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
   // the restarted (joint) fit are closer, and NLR on the force without them splits the pair: on
   // the discovery study's told-the-effect records at seed 5551212, frictional-lag+viscous-1
   // 1.30 -> 0.69 and frictional-lag+stribeck-1 1.23 -> 0.91 times the floor.
-  for (int again = 0; again < 2 && restarted; ++again) {
+  for (int again = 0; again < 2 && kept; ++again) {
     auto g = fit_from_nlr(r, best, o, m, under_level);
     if (!g || !(fit_bic(r, *g) < fit_bic(r, best))) break;
     best = std::move(*g);

@@ -37,7 +37,7 @@ struct Case {
 // Strokes with rests in both directions from a virgin state, with a Stribeck curve whose static
 // level is `static_ratio` times the Coulomb level; sampling, elements, scales and noise drawn
 // from `seed`.
-Case make_case(std::uint64_t seed, double static_ratio) {
+Case make_case(std::uint64_t seed, double static_ratio, double asymmetry = 0.0) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   Case c;
@@ -53,8 +53,11 @@ Case make_case(std::uint64_t seed, double static_ratio) {
     c.system.elements.push_back({share * c.system.coulomb / threshold, share});
   }
   const double vs = travel_scale * (100 + 400 * u(rng));  // 0.1-5 mm/s
-  c.system.effects.stribeck =
-      truth::Effects::Stribeck{static_ratio * c.system.coulomb, vs, 0.7 + 1.3 * u(rng)};
+  const double exponent = 0.7 + 1.3 * u(rng);
+  if (static_ratio > 0)
+    c.system.effects.stribeck =
+        truth::Effects::Stribeck{static_ratio * c.system.coulomb, vs, exponent};
+  if (asymmetry != 0) c.system.effects.asymmetry = asymmetry;
 
   truth::Measurement m;
   m.sampling_rate = 500 + 4500 * u(rng);
@@ -152,6 +155,41 @@ TEST(InitialLevel, TheEstimatedStateHoldsTheForceBeyondTheNominalLimits) {
   for (std::size_t i = 0; i < ne; ++i)
     force += c.system.elements[i].stiffness * values[i].get<double>();
   EXPECT_NEAR(force, clean0, 3 * c.sigma);
+}
+
+// The asymmetry moves operator i's box to [-(1 - a) Delta_i, (1 + a) Delta_i], a shift of
+// a Delta_i: the force the plain operators explain is the record minus a times the base's own
+// sliding force sum k_i Delta_i, whatever reference force the model's level pieces are defined on
+// (a refitted base's differs from it).  With the reference in its place the start of every
+// extended initial-state estimate was biased by a (F0ref - F0own), here +-0.1 Fc, many noise
+// sigmas (this test failed on that code for the 0.5 Fc reference).  The cut starts at rest
+// after sliding, where the force is -(1 - a) Fc and a bias can move the deflections into the box.
+TEST(InitialLevel, TheAsymmetrysShiftIsTheBasesOwnSlidingForce) {
+  const double a = 0.2;
+  const Case c = make_case(5151u, 0.0, a);
+  const std::size_t begin = c.rest_after_sliding, ne = c.system.elements.size();
+  const Record r = testing::record_of(c.trace, begin);
+  double clean0 = 0;
+  for (std::size_t i = 0; i < ne; ++i) clean0 += c.trace.element_force[begin * ne + i];
+  ASSERT_NEAR(clean0, -(1 - a) * c.system.coulomb, 20 * c.sigma) << "the cut should start sliding";
+  MaxwellSlipParameters<double> p;
+  for (std::size_t i = 0; i < ne; ++i) {
+    p.stiffness.push_back(c.system.elements[i].stiffness);
+    p.threshold.push_back(c.system.threshold(i));
+  }
+  for (double reference : {0.5, 1.5}) {
+    ExtensionParameters<double> ext;
+    ext.enable(Effect::asymmetry);
+    ext.asymmetry->asymmetry = a;
+    ext.reference_force = reference * c.system.coulomb;
+    const std::vector<double> rho = plain_relative_state(p, ext, r);
+    ASSERT_EQ(rho.size(), ne);
+    // Relative to the shifted box: deflection (rho_i + a) Delta_i (extension_fit.hpp).
+    double force = 0;
+    for (std::size_t i = 0; i < ne; ++i)
+      force += p.stiffness[i] * (rho[i] + a) * p.threshold[i];
+    EXPECT_NEAR(force, clean0, 3 * c.sigma) << "reference force " << reference << " Fc";
+  }
 }
 
 }  // namespace
