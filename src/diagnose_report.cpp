@@ -124,11 +124,14 @@ Finding make_finding(const Context& c, const Chain& chain, std::size_t i, double
   f.effect = e;
   // Its parameters with standard errors from the joint fit of this step (section 6).
   rep = report_at_origin(c, after);
-  const auto with = effect_info(e).reported_with;
   for (const auto& est : rep.pieces)
     if (est.effect == e) f.parameters.push_back(est);
+  // A companion (a velocity lag's viscous term or Stribeck curve): a piece this step added that
+  // no finding names.
   for (const auto& est : rep.pieces)
-    if (with && est.effect == *with) f.parameters.push_back(est);
+    if (est.effect != e && !before.ext.has(est.effect) &&
+        std::find(after.order.begin(), after.order.end(), est.effect) == after.order.end())
+      f.parameters.push_back(est);
   f.validation_before = before.validation;
   f.validation_after = after.validation;
   extended_validation_percent(before.base, before.ext, c.val, &f.validation_run_before);
@@ -228,7 +231,7 @@ std::string Verdict::to_text() const {
     return "the delay is no larger than the shift that stepping the model once per sample "
            "imitates (a reversal between two samples): not a delay of the record";
   if (nested == Nested::no_better_than_viscous)
-    return "no better than the viscous piece alone (BIC)";
+    return "no better than the velocity piece it came with (viscous or Stribeck) alone (BIC)";
   std::ostringstream s;
   if (!at_bound.empty())
     s << at_bound << " ended at the edge of its range (on its own the effect as defined does not "
@@ -293,8 +296,19 @@ std::vector<std::string> Finding::ambiguous_with_names() const {
 }
 
 std::string Finding::extension() const {
-  return effect ? std::string(effect_info(*effect).extension)
-                : std::string("Maxwell Slip elements (NLR) replace the single LuGre state");
+  if (!effect) return "Maxwell Slip elements (NLR) replace the single LuGre state";
+  std::string s(effect_info(*effect).extension);
+  // A velocity lag's companion (the viscous term or the Stribeck curve it acts on) is part of
+  // what the finding adds: said, not only listed among the parameters.
+  std::vector<Effect> companions;
+  for (const auto& p : parameters)
+    if (p.effect != *effect &&
+        std::find(companions.begin(), companions.end(), p.effect) == companions.end())
+      companions.push_back(p.effect);
+  for (Effect e : companions)
+    s += std::string(", acting on its companion ") + std::string(effect_name(e)) + " (" +
+         std::string(effect_info(e).extension) + ")";
+  return s;
 }
 
 std::string Finding::separating_excitation() const {

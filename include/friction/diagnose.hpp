@@ -102,9 +102,14 @@
 //    finding on a record whose sliding speeds span less than a factor 1.5 is ambiguous with a
 //    higher Coulomb level (the thresholds), and says so.
 //
-// Nested candidates: `frictional-lag` fitted with its own viscous companion contains `viscous`;
-// it earns its place only when its lag exceeds one sample period and its BIC beats the viscous
-// candidate's of the same round.
+// Nested candidates: `frictional-lag` on a model without a velocity piece is fitted with a
+// viscous companion, and, when the round's Stribeck candidate passes the estimation rules on its
+// own and the nested checks below, also on that Stribeck curve (a curve behind a long lag: neither the viscous pair nor the
+// curve alone describes it, and one-at-a-time rounds turned both down); the lag candidate is the
+// one of the two with the lower BIC, and its companion is reported with it.  It contains its
+// companion, and earns its place only when its lag exceeds one sample period, its BIC beats the
+// companion candidate's of the same round, and a Stribeck companion passes the curve's own check
+// (below).
 //
 // A Stribeck curve names a fall of the sliding force with speed, so the record must show the fall
 // where it slides: what is left of the drop at the lowest sliding speeds the record holds must
@@ -243,7 +248,7 @@ struct Verdict {
   enum class Nested {
     none,
     lag_below_one_sample,    ///< frictional-lag's lag fitted below one sample period
-    no_better_than_viscous,  ///< frictional-lag with its companion no better than viscous (BIC)
+    no_better_than_viscous,  ///< frictional-lag no better than its companion alone (BIC)
     drop_below_sliding,      ///< a Stribeck curve that has fallen before the record slides
     delay_within_stepping,   ///< a delay no larger than the shift per-sample stepping imitates
   };

@@ -897,6 +897,20 @@ TEST(DiscoveryStudy, AnAmplitudeInNewtonsCarriesTheUncertaintyOfF0) {
             2);
 }
 
+// A regression test (label long, its own record): `frictional-lag+stribeck-2` at seed 424242
+// (envelope, static level three times the Coulomb level, lag 18 ms, AR(1) force noise at 0.82).
+// The curve alone follows the speed at once and made the validation error worse (4.09 -> 4.11 %);
+// the lag came with a viscous companion only and explained nothing; the diagnosis named nothing
+// at 470 times the noise floor.  The lag is now also fitted on the round's Stribeck curve
+// (diagnose.hpp, Nested candidates): the record must be named exactly, and the lag and the
+// curve's three parameters must have standard errors that put them within 3 of the truth.
+TEST(DiscoveryStudy, ALagOnAStribeckCurveIsNamedWithIt) {
+  // lag_time, static, stribeck_velocity, stribeck_exponent
+  EXPECT_EQ(expect_exact_with_parameters_within(424242, "frictional-lag+stribeck-2",
+                                                "lag-on-stribeck-regression", 3.0, false),
+            4);
+}
+
 TEST(DiscoveryStudy, NonlocalMemoryOnALugreBaseline) {
   const auto [seed, origin] = study_seed();
   std::vector<RecordSpec> plan;
