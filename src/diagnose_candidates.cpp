@@ -78,6 +78,20 @@ void take_fit(State& s, const ExtendedSlipFit& f, double validation) {
 
 // One candidate fitted on top of `s` from the start its evidence gives; validated only when
 // rules (a) and (b) pass.
+// Candidate t's fit taken as the state after s (before any restart).
+State state_after(const State& s, const Tried& t) {
+  State next;
+  next.base = t.result.base;
+  next.rho = t.result.rho;
+  next.ext = t.result.ext;
+  next.rss = t.fit.estimation_rss;
+  next.validation = t.fit.validation_percent;
+  next.order = s.order;
+  next.order.push_back(t.fit.effect);
+  next.at_bound = t.result.at_bound;
+  return next;
+}
+
 // The rules (section 4) for a candidate fitted on top of s, `extra` fitted numbers beyond s's.
 void judge_candidate(const Context& c, const State& s, Effect e, std::size_t extra, Tried& t) {
   if (!t.result.ok) {
@@ -160,14 +174,7 @@ Tried fit_candidate(const Context& c, const State& s, Effect e, const ResidualEv
 // study seed 424242, `frictional-lag+stribeck-2`: Fs = 3 Fc, lag 18 ms; the curve alone 4.09 ->
 // 4.11 % on validation, named nothing.)
 Tried lag_on_stribeck(const Context& c, const State& s, const Tried& stribeck) {
-  State on;
-  on.base = stribeck.result.base;
-  on.rho = stribeck.result.rho;
-  on.ext = stribeck.result.ext;
-  on.rss = stribeck.result.rss;
-  on.validation = s.validation;
-  on.order = s.order;
-  on.at_bound = stribeck.result.at_bound;
+  const State on = state_after(s, stribeck);
   Tried t;
   const auto t_start = std::chrono::steady_clock::now();
   if (fit_candidate_only(c, on, Effect::frictional_lag,
@@ -296,7 +303,6 @@ void check_nested(const Context& c, const State& s, std::vector<Tried>& round) {
   }
 }
 
-// The state after accepting `t` on top of `s`.
 // The state after accepting t.  The candidate's fit started from the operators of a model that
 // was identified on a force holding the effect (the baseline's M was chosen by BIC with the
 // effect's misfit in it), and a local refit from there can keep that distortion (identify's
@@ -305,15 +311,7 @@ void check_nested(const Context& c, const State& s, std::vector<Tried>& round) {
 // solution.  So the accepted model gets the restart too: NLR with its order selected again on the
 // force without the pieces, the joint fit from that base, kept when its BIC is lower.
 State accepted(const Context& c, const State& s, const Tried& t) {
-  State next;
-  next.base = t.result.base;
-  next.rho = t.result.rho;
-  next.ext = t.result.ext;
-  next.rss = t.fit.estimation_rss;
-  next.validation = t.fit.validation_percent;
-  next.order = s.order;
-  next.order.push_back(t.fit.effect);
-  next.at_bound = t.result.at_bound;
+  State next = state_after(s, t);
   ExtensionFitOptions o;
   o.max_iterations = c.options.max_iterations;
   o.max_operators = c.options.method.max_operators;
