@@ -234,6 +234,7 @@ ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>
   best.rss = std::numeric_limits<double>::infinity();
   Columns c;
   detail::BoxLeastSquaresStorage storage;
+  std::string last_rejection;
   auto evaluate = [&](const ExtensionParameters<double>& at_point) {
     try {
       at_point.validate();
@@ -259,8 +260,9 @@ ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>
         if (c.offset) best.ext.offset->offset = z[j++];
         if (c.inertia) best.ext.inertia->mass = z[j++];
       }
-    } catch (const InvalidParameter&) {
+    } catch (const InvalidParameter& e) {
       // A grid point outside a piece's domain (e.g. a level that vanishes): skipped.
+      if (last_rejection.empty()) last_rejection = e.what();
     }
   };
   std::vector<std::size_t> at(axes.size(), 0);
@@ -294,7 +296,7 @@ ProfiledStart profile_start(const Record& r, const MaxwellSlipParameters<double>
     }
   }
   FRICTION_CHECK(std::isfinite(best.rss), "profile_start: no grid point of ", effect_name(profiled),
-                 " gave a usable model");
+                 " gave a usable model (the first rejected: ", last_rejection, ")");
   return best;
 }
 

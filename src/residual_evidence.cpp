@@ -43,6 +43,11 @@ Explained explain(const std::vector<double>& e, const std::vector<std::vector<do
   Explained out;
   out.coefficients = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p));
   if (total <= 0) return out;
+  // A signature that is zero on the whole record (a sliding-only signature on a run that never
+  // slides) explains nothing and has no coefficient: a least-squares solve of zero columns gave
+  // an infinite one on a study record, and a start built from it failed every grid point.
+  for (std::size_t j = 0; j < p; ++j)
+    if (!(a.col(static_cast<Eigen::Index>(q + j)).squaredNorm() > 0)) return out;
   auto rss_of = [&](const Eigen::MatrixXd& m, Eigen::VectorXd* coef) {
     if (m.cols() == 0) return total;
     Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(m);
@@ -53,6 +58,7 @@ Explained explain(const std::vector<double>& e, const std::vector<std::vector<do
   const double r0 = rss_of(a.leftCols(static_cast<Eigen::Index>(q)), nullptr);
   Eigen::VectorXd c;
   const double r1 = rss_of(a, &c);
+  if (!c.allFinite() || !std::isfinite(r1)) return out;
   out.share = std::max(0.0, (r0 - r1) / total);
   out.coefficients = c.tail(static_cast<Eigen::Index>(p));
   return out;

@@ -611,7 +611,8 @@ struct EvidenceStartContext {
 /// Start of effect e's piece on a Maxwell Slip model from its evidence `w` (null: none).
 inline PieceStart start_from_evidence(Effect e, const EffectStart* w,
                                       const EvidenceStartContext& c) {
-  const double coef = w ? w->coefficient : 0.0;
+  // A coefficient that is not finite is no evidence (a degenerate regression).
+  const double coef = w && std::isfinite(w->coefficient) ? w->coefficient : 0.0;
   const double f0 = c.reference_force;
   PieceStart p;
   auto& v = p.values;
@@ -650,7 +651,8 @@ inline PieceStart start_from_evidence(Effect e, const EffectStart* w,
     case Effect::frictional_lag: {
       double sigma2 = c.current_viscous;
       if (!c.has_velocity_piece) {
-        double companion = std::max(c.viscous_coefficient, 0.0);
+        double companion =
+            std::isfinite(c.viscous_coefficient) ? std::max(c.viscous_coefficient, 0.0) : 0.0;
         if (companion <= 0) companion = 0.05 * f0 / std::max(c.sliding_speed_max, 1e-12);
         p.viscous_companion = companion;
         sigma2 = companion;

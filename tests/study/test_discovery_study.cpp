@@ -819,6 +819,32 @@ TEST(DiscoveryStudy, ToldLagWithItsInitialStateEstimated) {
   EXPECT_EQ(state.at("lag_offset").at("unit"), "m/s");
 }
 
+// A regression record: `frictional-lag+stribeck-1` at seed 7594726044963748061 (6965e31's commit
+// seed; multisine, 682 Hz, 0.11 mm of travel: the NLR base's largest operator never slips, so its
+// free run has no sliding sample).  The residual's sliding-only signatures were then zero columns,
+// their least-squares coefficients infinite, and the lag's start in the order of the evidence had
+// a viscous companion of inf: every profile point was rejected and `identify` exited with
+// "no grid point of frictional-lag gave a usable model" (6965e31's CLI fails this test).  A
+// signature that is zero on the record is no evidence, and either order of the two-order fit
+// may fail alone; the told fit must validate within 1.2 times the floor with every parameter
+// within 3 standard errors.
+TEST(DiscoveryStudy, ToldLagOnAStribeckCurveWhereTheBaseNeverSlides) {
+  const std::string id = "frictional-lag+stribeck-1";
+  const std::optional<RecordSpec> spec = plan_record(7594726044963748061ULL, id);
+  ASSERT_TRUE(spec) << id;
+  const fs::path dir = fresh_output_directory("told-no-sliding");
+  const ToldOutcome o = run_told(*spec, dir);
+  ASSERT_TRUE(o.error.empty()) << o.error;
+  ASSERT_TRUE(o.eligible) << "twin " << o.twin_percent << " % against its floor " << o.twin_floor;
+  EXPECT_LE(o.told_percent, 1.2 * o.floor) << o.told_percent << " % against the floor " << o.floor;
+  const fs::path rd = dir / "records" / id;
+  // static, stribeck_velocity, stribeck_exponent, lag_time
+  EXPECT_EQ(expect_told_parameters_within(rd, 3.0), 4);
+  const Json told = Json::parse(read_file((rd / "told.json").string()));
+  for (const Json& w : told.at("warnings"))
+    EXPECT_EQ(w.get<std::string>().find("failed"), std::string::npos) << w;
+}
+
 // One record of the plan at `seed`, diagnosed in a directory of its own: it must be named
 // exactly, and every parameter of the named effects (the model-free ones only when asked) must
 // have a standard error that puts it within `max_z` of them.  Returns how many were judged.
