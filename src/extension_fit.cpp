@@ -174,8 +174,9 @@ class StructuredSlipCost final : public ceres::CostFunction {
       return out;
     };
     thread_local std::vector<JF> x;
-    thread_local std::vector<JO> dx, up, down, turn;
+    thread_local std::vector<JO> dx, up, down, turn, up_turn, down_turn;
     x.resize(n), dx.resize(n), up.resize(n), down.resize(n), turn.resize(n);
+    up_turn.resize(n), down_turn.resize(n);
     JO a(0), level0(1);
     double* jt = jacobians[0];
     double* jr = jacobians[1];
@@ -200,6 +201,9 @@ class StructuredSlipCost final : public ceres::CostFunction {
             turn[k] = lift(c.turn);
             up[k] = lift(level * (JF(1) + af));  // the slip limits of maxwell_slip.hpp's step
             down[k] = lift(level * (JF(1) - af));
+            const JF& at_turn = pieces_only.turn_level();  // motion.hpp: The level at the turn
+            up_turn[k] = lift(at_turn * (JF(1) + af));
+            down_turn[k] = lift(at_turn * (JF(1) - af));
             if (jt)
               for (std::size_t q = 0; q < e; ++q) jt[k * cols + 2 * m + q] = -f.scale * added.v[q];
             if (jr && l) jr[k * states + m] = -f.scale * added.v[e];
@@ -216,7 +220,10 @@ class StructuredSlipCost final : public ceres::CostFunction {
         for (std::size_t k = 0; k < n; ++k) {
           const JO lo = -down[k] * limit, hi = up[k] * limit;
           if (turn[k].a != 0.0)  // motion.hpp, Turns between samples
-            delta = clamp(JO(clamp(JO(delta + turn[k]), lo, hi) + (dx[k] - turn[k])), lo, hi);
+            delta = clamp(JO(clamp(JO(delta + turn[k]), JO(-down_turn[k] * limit),
+                                   JO(up_turn[k] * limit)) +
+                             (dx[k] - turn[k])),
+                          lo, hi);
           else
             delta = clamp(JO(delta + dx[k]), lo, hi);
           const double g = -f.scale * k_i;  // d residual / d delta

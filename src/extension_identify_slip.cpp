@@ -152,14 +152,15 @@ ExtendedSlipFit add_pieces(const Record& r, ExtendedSlipFit cur, const std::vect
 // velocity, offset, inertia) and the level it hands its base.  Both forces the restart's NLR runs
 // on are made from it.
 struct PiecesAlongRun {
-  std::vector<double> added, level;
+  std::vector<double> added, level, turn_level;
 };
 
 PiecesAlongRun pieces_along_run(const Record& r, const ExtendedSlipFit& cur) {
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(cur.base), cur.ext, 2);
   set_extended_slip_state(model,
                           std::span<const double>(deflections_from_relative(cur.base, cur.rho, cur.ext)));
-  PiecesAlongRun run{std::vector<double>(r.size()), std::vector<double>(r.size())};
+  PiecesAlongRun run{std::vector<double>(r.size()), std::vector<double>(r.size()),
+                     std::vector<double>(r.size())};
   for_each_extended_step(
       model, std::span<const double>(r.time), std::span<const double>(r.displacement),
       std::span<const double>(r.normal), nullptr,
@@ -171,6 +172,7 @@ PiecesAlongRun pieces_along_run(const Record& r, const ExtendedSlipFit& cur) {
         if (cur.ext.inertia) added += cur.ext.inertia->mass * c.acceleration;
         run.added[k] = added;
         run.level[k] = model.level();
+        run.turn_level[k] = model.turn_level();
       },
       std::span<const double>(r.measured_displacement));
   return run;
@@ -205,10 +207,14 @@ std::vector<double> force_under_limits(const Record& r, const ExtendedSlipFit& c
   std::vector<double> target(r.size());
   limits.upper.resize(r.size());
   limits.lower.resize(r.size());
+  limits.turn_upper.resize(r.size());
+  limits.turn_lower.resize(r.size());
   for (std::size_t k = 0; k < r.size(); ++k) {
     target[k] = r.force[k] - run.added[k];
     limits.upper[k] = run.level[k] * (1.0 + asymmetry);
     limits.lower[k] = run.level[k] * (1.0 - asymmetry);
+    limits.turn_upper[k] = run.turn_level[k] * (1.0 + asymmetry);
+    limits.turn_lower[k] = run.turn_level[k] * (1.0 - asymmetry);
   }
   limits.first = r.size() > 0 ? run.level[0] : 1.0;
   return target;

@@ -813,11 +813,14 @@ void dictionary_operators(Data& d) {
     const double turn = d.turns[t];
     const double up = d.limits ? d.limits->upper[t] : 1.0;
     const double down = d.limits ? d.limits->lower[t] : 1.0;
+    const bool turned = d.limits && !d.limits->turn_upper.empty();
+    const double up_turn = turned ? d.limits->turn_upper[t] : up;
+    const double down_turn = turned ? d.limits->turn_lower[t] : down;
     for (std::size_t c = 0; c < p; ++c) {
       const double a = thr[cols[c].first];
-      if (turn != 0.0)  // motion.hpp, Turns between samples
-        z[c] = std::clamp(std::clamp(z[c] + turn, -down * a, up * a) + (dx - turn), -down * a,
-                          up * a);
+      if (turn != 0.0)  // motion.hpp, Turns between samples (and The level at the turn)
+        z[c] = std::clamp(std::clamp(z[c] + turn, -down_turn * a, up_turn * a) + (dx - turn),
+                          -down * a, up * a);
       else
         z[c] = std::clamp(z[c] + dx, -down * a, up * a);
     }

@@ -17,22 +17,32 @@ std::vector<double> turns_of(std::span<const double> x) {
 
 namespace {
 
-// One operator's clamp with the flags of its sensitivities: `above`/`below` when it ended on a
-// bound.  Through the turn when there is one: the bound it last met is the one that counts.
-inline double step_operator(double v, double dx, double turn, double lo, double hi, bool& above,
-                            bool& below) {
+// One operator's clamp with the sensitivity d delta / d Delta when it ended on a bound (`bound`,
+// the factor of Delta in that bound; `clamped` true).  Through the turn when there is one, the step
+// to the extremum bounded by [lo_turn, hi_turn] (motion.hpp, The level at the turn): the bound it
+// last met is the one that counts.
+struct OperatorStep {
+  double value;
+  bool clamped;
+  double bound;  // d value / d Delta when clamped
+};
+inline OperatorStep step_operator(double v, double dx, double turn, double lo, double hi,
+                                  double lo_turn, double hi_turn, double f_lo, double f_hi,
+                                  double f_lo_turn, double f_hi_turn) {
   if (turn != 0.0) {
     const double u1 = v + turn;
-    const bool a1 = u1 > hi, b1 = u1 < lo;
-    const double u2 = (a1 ? hi : (b1 ? lo : u1)) + (dx - turn);
-    const bool a2 = u2 > hi, b2 = u2 < lo;
-    above = a2 || (!b2 && a1);
-    below = b2 || (!a2 && b1);
-    return a2 ? hi : (b2 ? lo : u2);
+    const bool a1 = u1 > hi_turn, b1 = u1 < lo_turn;
+    const double u2 = (a1 ? hi_turn : (b1 ? lo_turn : u1)) + (dx - turn);
+    if (u2 > hi) return {hi, true, f_hi};
+    if (u2 < lo) return {lo, true, f_lo};
+    if (a1) return {u2, true, f_hi_turn};
+    if (b1) return {u2, true, f_lo_turn};
+    return {u2, false, 0.0};
   }
   const double u = v + dx;
-  above = u > hi, below = u < lo;
-  return above ? hi : (below ? lo : u);
+  if (u > hi) return {hi, true, f_hi};
+  if (u < lo) return {lo, true, f_lo};
+  return {u, false, 0.0};
 }
 
 // operator_trajectories under SlipLimits: the same recursion with a box that moves per sample.
@@ -45,6 +55,11 @@ void trajectories_under_limits(std::span<const double> thresholds,
   FRICTION_CHECK(limits.upper.size() == x.size() && limits.lower.size() == x.size(),
                  "Maxwell Slip: slip limits for ", limits.upper.size(), " and ",
                  limits.lower.size(), " samples, the record has ", x.size());
+  const bool turned = !limits.turn_upper.empty();
+  FRICTION_CHECK(!turned || (limits.turn_upper.size() == x.size() &&
+                             limits.turn_lower.size() == x.size()),
+                 "Maxwell Slip: turn limits for ", limits.turn_upper.size(), " and ",
+                 limits.turn_lower.size(), " samples, the record has ", x.size());
   std::vector<double> v(m), g_threshold(m, 0.0), g_initial(m, limits.first);
   for (std::size_t i = 0; i < m; ++i) v[i] = limits.first * initial[i];
   double* delta = out.delta.data();
@@ -54,15 +69,19 @@ void trajectories_under_limits(std::span<const double> thresholds,
     const std::size_t ts = static_cast<std::size_t>(t);
     const double dx = t > 0 ? x[ts] - x[ts - 1] : 0.0;
     const double up = limits.upper[ts], down = limits.lower[ts];
+    const double up_turn = turned ? limits.turn_upper[ts] : up;
+    const double down_turn = turned ? limits.turn_lower[ts] : down;
     for (std::size_t i = 0; i < m; ++i) {
-      bool above = false, below = false;
-      v[i] = step_operator(v[i], dx, turn[ts], -down * thresholds[i], up * thresholds[i], above,
-                           below);
+      const OperatorStep s =
+          step_operator(v[i], dx, turn[ts], -down * thresholds[i], up * thresholds[i],
+                        -down_turn * thresholds[i], up_turn * thresholds[i], -down, up,
+                        -down_turn, up_turn);
+      v[i] = s.value;
       const Eigen::Index at = static_cast<Eigen::Index>(i) * n + t;
       delta[at] = v[i];
       if (sensitivities) {
-        g_threshold[i] = above ? up : (below ? -down : g_threshold[i]);
-        g_initial[i] = above || below ? 0.0 : g_initial[i];
+        g_threshold[i] = s.clamped ? s.bound : g_threshold[i];
+        g_initial[i] = s.clamped ? 0.0 : g_initial[i];
         dt[at] = g_threshold[i];
         di[at] = g_initial[i];
       }
@@ -82,6 +101,15 @@ void check_slip_limits(const SlipLimits& limits, std::size_t samples) {
     FRICTION_CHECK(limits.upper[t] > 0.0 && limits.lower[t] > 0.0 &&
                        std::isfinite(limits.upper[t]) && std::isfinite(limits.lower[t]),
                    "Maxwell Slip: slip limit factors at sample ", t, " must be finite and > 0");
+  const bool turned = !limits.turn_upper.empty() || !limits.turn_lower.empty();
+  FRICTION_CHECK(!turned || (limits.turn_upper.size() == samples &&
+                             limits.turn_lower.size() == samples),
+                 "Maxwell Slip: turn limits for ", limits.turn_upper.size(), " and ",
+                 limits.turn_lower.size(), " samples, the record has ", samples);
+  for (std::size_t t = 0; turned && t < samples; ++t)
+    FRICTION_CHECK(limits.turn_upper[t] > 0.0 && limits.turn_lower[t] > 0.0 &&
+                       std::isfinite(limits.turn_upper[t]) && std::isfinite(limits.turn_lower[t]),
+                   "Maxwell Slip: turn limit factors at sample ", t, " must be finite and > 0");
 }
 
 void operator_trajectories(std::span<const double> thresholds,
@@ -153,11 +181,11 @@ void operator_trajectories(std::span<const double> thresholds,
     const double dx =
         t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
     for (std::size_t i = 0; i < m; ++i) {
-      bool above = false, below = false;
-      v[i] = step_operator(v[i], dx, turn[static_cast<std::size_t>(t)], -limit[i], limit[i], above,
-                           below);
-      g_threshold[i] = above ? 1.0 : (below ? -1.0 : g_threshold[i]);
-      g_initial[i] = above || below ? 0.0 : g_initial[i];
+      const OperatorStep s = step_operator(v[i], dx, turn[static_cast<std::size_t>(t)], -limit[i],
+                                           limit[i], -limit[i], limit[i], -1.0, 1.0, -1.0, 1.0);
+      v[i] = s.value;
+      g_threshold[i] = s.clamped ? s.bound : g_threshold[i];
+      g_initial[i] = s.clamped ? 0.0 : g_initial[i];
       const Eigen::Index at = static_cast<Eigen::Index>(i) * n + t;
       delta[at] = v[i];
       dt[at] = g_threshold[i];

@@ -44,6 +44,9 @@ struct OperatorTrajectories {
 /// operators do not feel the level) is not the force of any Maxwell Slip model.
 struct SlipLimits {
   std::vector<double> upper, lower;
+  /// The factors at the turn inside a sample's interval, for the step to the extremum (motion.hpp,
+  /// The level at the turn); empty: upper and lower.
+  std::vector<double> turn_upper, turn_lower;
   double first = 1;
 };
 

@@ -257,12 +257,16 @@ TEST(Nlr, OperatorTrajectoriesUnderLimitsAreTheJetRunOfTheModel) {
   const std::vector<double> thr{0.7e-6, 2e-6, 6e-6, 3e-5};
   const std::vector<double> init{1e-6, -2e-6, 0.5e-6, -3e-5};
   const double a = 0.15;
-  std::vector<double> level(rec.size());
+  std::vector<double> level(rec.size()), turn_level(rec.size());
   detail::SlipLimits limits;
   for (std::size_t t = 0; t < rec.size(); ++t) {
     level[t] = 1.0 + 0.6 * std::sin(0.013 * static_cast<double>(t) + 0.4);
+    // A level at the turns of its own (motion.hpp, The level at the turn), above and below.
+    turn_level[t] = level[t] * (1.0 + 0.5 * std::sin(0.021 * static_cast<double>(t)));
     limits.upper.push_back(level[t] * (1.0 + a));
     limits.lower.push_back(level[t] * (1.0 - a));
+    limits.turn_upper.push_back(turn_level[t] * (1.0 + a));
+    limits.turn_lower.push_back(turn_level[t] * (1.0 - a));
   }
   limits.first = level[0];
   detail::OperatorTrajectories tr;
@@ -270,11 +274,12 @@ TEST(Nlr, OperatorTrajectoriesUnderLimitsAreTheJetRunOfTheModel) {
   using Jet = ceres::Jet<double, 2>;
   MaxwellSlip<Jet> model = seeded_operators(thr, init, a);
   model.scale_state(Jet(limits.first));
-  int at_upper = 0, at_lower = 0;
+  int at_upper = 0, at_lower = 0, from_turn = 0;
   for (std::size_t t = 0; t < rec.size(); ++t) {
     const double dx = t > 0 ? rec.displacement[t] - rec.displacement[t - 1] : 0.0;
     const double turn = turn_increment(std::span<const double>(rec.displacement), t);
-    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0), Jet(level[t]), Jet(a), Jet(turn)});
+    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0), Jet(level[t]), Jet(a), Jet(turn),
+                           Jet(turn_level[t])});
     for (std::size_t i = 0; i < thr.size(); ++i) {
       const Jet& j = model.deflections()[i];
       const auto ti = static_cast<Eigen::Index>(t), ii = static_cast<Eigen::Index>(i);
@@ -283,10 +288,13 @@ TEST(Nlr, OperatorTrajectoriesUnderLimitsAreTheJetRunOfTheModel) {
       ASSERT_NEAR(tr.d_initial(ti, ii), j.v[1], 1e-13) << t << " " << i;
       at_upper += j.v[0] > 0.0;
       at_lower += j.v[0] < 0.0;
+      from_turn += turn != 0.0 && j.v[0] != 0.0 &&
+                   std::abs(j.v[0]) != limits.upper[t] && std::abs(j.v[0]) != limits.lower[t];
     }
   }
   EXPECT_GT(at_upper, 0);  // both limits were met, each with its own factor
   EXPECT_GT(at_lower, 0);
+  EXPECT_GT(from_turn, 0);  // and operators kept the bound they met at a turn
   detail::OperatorTrajectories plain;
   detail::operator_trajectories(thr, init, rec.displacement, false, plain, &limits);
   EXPECT_TRUE(plain.delta == tr.delta);

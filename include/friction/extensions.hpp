@@ -454,6 +454,7 @@ class Extended {
     initial_lag_offset_ = T(0);
     previous_piece_velocity_ = T(0);
     level_ = T(1);
+    turn_level_ = T(1);
     first_step_ = true;
     fixed_initial_level_ = false;
     x_ = T(0);
@@ -535,21 +536,41 @@ class Extended {
       v = lagged_velocity_;
     }
 
-    T level = c.level;
+    // The level at t_k and, when the interval holds a turn, at the extremum (motion.hpp, The level
+    // at the turn): there the motion stands still (the lagged velocity, when there is a lag, does
+    // not: it is taken as at t_k) and the displacement is that of the extremum.
+    const bool turns = value_of(c.turn) != 0.0;
+    T level = c.level, at_turn = c.level;
     if (p_.stribeck) {
       const auto& s = *p_.stribeck;
-      level *= T(1) + (s.static_force / f0_ - T(1)) *
-                          stribeck_weight(v, s.stribeck_velocity, s.stribeck_exponent);
+      const T excess = s.static_force / f0_ - T(1);
+      const T here = T(1) + excess * stribeck_weight(v, s.stribeck_velocity, s.stribeck_exponent);
+      level *= here;
+      if (turns) at_turn *= p_.frictional_lag ? here : T(s.static_force / f0_);
     }
     if (p_.position_dependence) {
       const auto& pd = *p_.position_dependence;
       level *= T(1) + pd.amplitude / f0_ * sin(T(2.0 * M_PI) * c.x / pd.wavelength + pd.phase);
+      if (turns) {
+        const T x_turn = c.x - c.dx + c.turn;
+        at_turn *=
+            T(1) + pd.amplitude / f0_ * sin(T(2.0 * M_PI) * x_turn / pd.wavelength + pd.phase);
+      }
     }
-    if (p_.drift) level *= T(1) + p_.drift->relative_rate * T(c.time);
-    if (p_.normal_load && c.has_normal)
-      level *= p_.normal_load->friction_coefficient * c.normal / f0_;
+    if (p_.drift) {
+      const T factor = T(1) + p_.drift->relative_rate * T(c.time);
+      level *= factor;
+      at_turn *= factor;
+    }
+    if (p_.normal_load && c.has_normal) {
+      const T factor = p_.normal_load->friction_coefficient * c.normal / f0_;
+      level *= factor;
+      at_turn *= factor;
+    }
     if (level < T(kMinimumLevel)) level = T(kMinimumLevel);
+    if (at_turn < T(kMinimumLevel)) at_turn = T(kMinimumLevel);
     level_ = level;
+    turn_level_ = turns ? at_turn : level;
     if (first_step_) {
       // The initial state is given at level 1 (header: Initial state).
       if constexpr (requires(Base & b, const T& l) { b.scale_state(l); })
@@ -558,7 +579,8 @@ class Extended {
     }
 
     const T asymmetry = p_.asymmetry ? p_.asymmetry->asymmetry : T(0);
-    const T base_force = base_.step(Motion<T>{c.dx, c.velocity, c.dt, level, asymmetry, c.turn});
+    const T base_force =
+        base_.step(Motion<T>{c.dx, c.velocity, c.dt, level, asymmetry, c.turn, turn_level_});
 
     T force = base_force;
     if (p_.viscous) force += p_.viscous->viscous * v;
@@ -569,6 +591,9 @@ class Extended {
 
   /// Level handed to the base at the last step.
   const T& level() const noexcept { return level_; }
+  /// Level at the turn inside the last step's interval (motion.hpp, The level at the turn); the
+  /// step's level when the interval holds no turn.
+  const T& turn_level() const noexcept { return turn_level_; }
   /// Lagged velocity v_l of the frictional-lag piece after the last step (0 without that piece).
   const T& lagged_velocity() const noexcept { return lagged_velocity_; }
 
@@ -615,6 +640,7 @@ class Extended {
   T initial_lag_offset_{0};
   T previous_piece_velocity_{0};
   T level_{1};
+  T turn_level_{1};
   bool first_step_ = true;            // the next step scales the base's state by its level
   bool fixed_initial_level_ = false;  // ... or by initial_level_
   T initial_level_{1};

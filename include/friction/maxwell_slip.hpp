@@ -115,11 +115,15 @@ class MaxwellSlip {
     T force(0);
     const T up = m.level * (T(1) + m.asymmetry), down = m.level * (T(1) - m.asymmetry);
     if (value_of(m.turn) != 0.0) {
-      // Through the extremum inside the interval (motion.hpp, Turns between samples).
+      // Through the extremum inside the interval, at the level there (motion.hpp, Turns between
+      // samples).
       const T back = m.dx - m.turn;
+      const T at_turn = value_of(m.turn_level) > 0.0 ? m.turn_level : m.level;
+      const T up_turn = at_turn * (T(1) + m.asymmetry), down_turn = at_turn * (T(1) - m.asymmetry);
       for (std::size_t i = 0; i < n; ++i) {
         const T lo = -down * limit[i], hi = up * limit[i];
-        delta[i] = clamp(T(clamp(T(delta[i] + m.turn), lo, hi) + back), lo, hi);
+        const T turned = clamp(T(delta[i] + m.turn), T(-down_turn * limit[i]), T(up_turn * limit[i]));
+        delta[i] = clamp(T(turned + back), lo, hi);
         force += k[i] * delta[i];
       }
       return force;
