@@ -7,7 +7,12 @@
 // need) and DIR/truth.json, like the study's own record directory; the same system, motions and
 // normal programs.  --no-encoder: the displacement unquantised; --no-noise: force noise of
 // 1e-6 Fc, white (not zero: a fit's standard errors stay defined); --rate-factor K: K times the
-// sampling rate over the same durations.  E.g. README, "The discovery study's coverage".
+// sampling rate over the same durations; --exact-derivatives: DIR/exact-estimation.csv and
+// DIR/exact-validation.csv, the exact v(t_k) and a(t_k) [m/s, m/s^2] of each record.  It prints the
+// true elements (k_i and Delta_i = alpha_i Fc / k_i, for a model file of the true system) and the
+// validation record's floors: the noise's, the reachable one (the sampled true system on the
+// recorded displacement, its speed-dependent terms fed the best fixed window's estimates), and
+// the same fed the exact v and a (the sampled system's own error).  E.g. README, "The discovery study's coverage".
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -20,7 +25,8 @@
 int main(int argc, char** argv) {
   using namespace truth;
   if (argc < 4) {
-    std::fprintf(stderr, "usage: %s SEED ID DIR [--no-encoder] [--no-noise] [--rate-factor K]\n",
+    std::fprintf(stderr, "usage: %s SEED ID DIR [--no-encoder] [--no-noise] [--rate-factor K] "
+                 "[--exact-derivatives]\n",
                  argv[0]);
     return 2;
   }
@@ -28,12 +34,14 @@ int main(int argc, char** argv) {
     const std::uint64_t seed = std::strtoull(argv[1], nullptr, 0);
     const std::string id = argv[2];
     const std::filesystem::path dir = argv[3];
-    bool encoder = true, noise = true;
+    bool encoder = true, noise = true, exact_derivatives = false;
     double rate_factor = 1;
     for (int i = 4; i < argc; ++i) {
       const std::string a = argv[i];
       if (a == "--no-encoder") {
         encoder = false;
+      } else if (a == "--exact-derivatives") {
+        exact_derivatives = true;
       } else if (a == "--no-noise") {
         noise = false;
       } else if (a == "--rate-factor" && i + 1 < argc) {
@@ -66,7 +74,34 @@ int main(int argc, char** argv) {
     write_csv(r, false, (dir / "validation.csv").string());
     std::ofstream(dir / "read-options.txt") << r.read_options() << "\n";
     write_truth(r, (dir / "truth.json").string());
+    if (exact_derivatives)
+      for (const auto& [name, t] : {std::pair{"exact-estimation.csv", &r.trace_estimation},
+                                    std::pair{"exact-validation.csv", &r.trace_validation}}) {
+        std::ofstream o(dir / name);
+        o.precision(17);
+        o << "velocity,acceleration\n";
+        for (std::size_t k = 0; k < t->velocity.size(); ++k)
+          o << t->velocity[k] << "," << t->acceleration[k] << "\n";
+      }
     std::printf("%s\n", r.summary().c_str());
+    std::printf("elements (k [N/m], Delta [m]):");
+    for (const Element& e : r.system.elements)
+      std::printf(" %.17g %.17g", e.stiffness, e.share * r.system.coulomb / e.stiffness);
+    std::printf("\n");
+    const Trace& t = r.trace_validation;
+    const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;
+    const Derivatives estimated = best_local_derivatives(t);
+    const std::vector<double> reachable = reachable_force(r.system, t, nv, r.validation, &estimated);
+    const std::vector<double> exact = reachable_force(r.system, t, nv, r.validation, nullptr);
+    double noise_ss = 0, gap = 0, gap_exact = 0, total = 0;
+    for (std::size_t k = 0; k < t.force.size(); ++k) {
+      noise_ss += (t.force[k] - t.clean[k]) * (t.force[k] - t.clean[k]);
+      gap += (t.force[k] - reachable[k]) * (t.force[k] - reachable[k]);
+      gap_exact += (t.force[k] - exact[k]) * (t.force[k] - exact[k]);
+      total += t.force[k] * t.force[k];
+    }
+    std::printf("validation floors: noise %.4g %%, reachable %.4g %%, with exact v and a %.4g %%\n",
+                100 * noise_ss / total, 100 * gap / total, 100 * gap_exact / total);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
