@@ -174,11 +174,9 @@ class StructuredSlipCost final : public ceres::CostFunction {
       return out;
     };
     thread_local std::vector<JF> x;
-    thread_local std::vector<JO> dx, up, down, turn, up_turn, down_turn, sub_up, sub_down;
-    thread_local std::vector<std::size_t> sub_begin;
+    thread_local std::vector<JO> dx, up, down, turn, up_turn, down_turn;
     x.resize(n), dx.resize(n), up.resize(n), down.resize(n), turn.resize(n);
-    up_turn.resize(n), down_turn.resize(n), sub_begin.assign(n + 1, 0);
-    sub_up.clear(), sub_down.clear();
+    up_turn.resize(n), down_turn.resize(n);
     JO a(0), level0(1);
     double* jt = jacobians[0];
     double* jr = jacobians[1];
@@ -206,15 +204,6 @@ class StructuredSlipCost final : public ceres::CostFunction {
             const JF& at_turn = pieces_only.turn_level();  // motion.hpp: The level at the turn
             up_turn[k] = lift(at_turn * (JF(1) + af));
             down_turn[k] = lift(at_turn * (JF(1) - af));
-            // extensions.hpp: The level inside an interval.
-            sub_begin[k] = sub_up.size();
-            const auto subs = pieces_only.sub_levels();
-            if (subs.size() > 1)
-              for (const JF& lu : subs) {
-                sub_up.push_back(lift(lu * (JF(1) + af)));
-                sub_down.push_back(lift(lu * (JF(1) - af)));
-              }
-            sub_begin[k + 1] = sub_up.size();
             if (jt)
               for (std::size_t q = 0; q < e; ++q) jt[k * cols + 2 * m + q] = -f.scale * added.v[q];
             if (jr && l) jr[k * states + m] = -f.scale * added.v[e];
@@ -230,11 +219,7 @@ class StructuredSlipCost final : public ceres::CostFunction {
         delta *= level0;  // the state is given at level 1 (extensions.hpp: Initial state)
         for (std::size_t k = 0; k < n; ++k) {
           const JO lo = -down[k] * limit, hi = up[k] * limit;
-          if (const std::size_t s0 = sub_begin[k], s1 = sub_begin[k + 1]; s1 > s0) {
-            const JO step = dx[k] * (1.0 / static_cast<double>(s1 - s0));
-            for (std::size_t u = s0; u < s1; ++u)
-              delta = clamp(JO(delta + step), JO(-sub_down[u] * limit), JO(sub_up[u] * limit));
-          } else if (turn[k].a != 0.0)  // motion.hpp, Turns between samples
+          if (turn[k].a != 0.0)  // motion.hpp, Turns between samples
             delta = clamp(JO(clamp(JO(delta + turn[k]), JO(-down_turn[k] * limit),
                                    JO(up_turn[k] * limit)) +
                              (dx[k] - turn[k])),

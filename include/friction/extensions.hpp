@@ -72,22 +72,6 @@
 // the level (a Stribeck curve at rest, a position term, a normal load), and an estimator needs no
 // bound that depends on the parameters.
 //
-// The level inside an interval.  Between samples the true level changes with the speed, and where
-// it rises (the motion slowing into a rest or a reversal, a Stribeck curve climbing to its static
-// level) an operator that slides moves with the limit only while the limit rises slower than its
-// spring: its force at t_k is min over s in the interval of Delta L(s) + (x_k - x(s)) (times k),
-// which can lie inside the interval, below both of the sample's candidates.  Clamped at L(t_k)
-// alone, a sampled model holds the operators higher as the motion stops.  On a study record
-// (strokes with rests, 4.2 kHz, Fs/F0 3, the speed falling through vs in one or two samples) the
-// sampled true system erred by 0.023 % of the force, the noise floor being 0.021 %.  So a Maxwell
-// Slip base with a Stribeck piece is stepped in S equal sub-steps of the increment, each clamped at
-// the Stribeck level of the velocity interpolated linearly between the samples' (the other level
-// factors at the sample's value); S = ceil(8 |v_k - v_{k-1}| / max(|v_k|, |v_{k-1}|)), at most
-// kLevelSubsteps, 1 where the speed hardly changes.  The same record: 0.0010 %, 2.2 sub-steps per
-// sample on average.  S follows the measured motion (the pieces' velocity before any lag), never
-// the parameters, so a fit's cost stays continuous in them.  Intervals with a turn are stepped
-// through the turn instead (motion.hpp).
-//
 // Differentiators: which velocity each part uses (sample_derivatives.hpp says why).  The base
 // model steps with the increment dx_k and the interval velocity dx_k/dt_k (Maxwell Slip and DNLRX
 // use only dx; LuGre's and GMS's exact steps are written for a constant velocity over the
@@ -120,13 +104,11 @@
 #include <span>
 #include <string_view>
 #include <tuple>
-#include <type_traits>
 #include <utility>
 #include <vector>
 
 #include "friction/effect_table.hpp"
 #include "friction/error.hpp"
-#include "friction/maxwell_slip.hpp"
 #include "friction/model_concept.hpp"
 #include "friction/motion.hpp"
 #include "friction/record.hpp"
@@ -411,8 +393,6 @@ class Extended {
 
   /// Smallest level handed to the base (keeps slip forces positive, e.g. under a strong drift).
   static constexpr double kMinimumLevel = 1e-6;
-  /// Most sub-steps of an interval (header: The level inside an interval).
-  static constexpr std::size_t kLevelSubsteps = 8;
 
   /// `delay_capacity`: samples kept for the per-sample delay (allocated only with a delay piece).
   Extended(Base base, Parameters extensions, std::size_t delay_capacity = 1024)
@@ -475,10 +455,6 @@ class Extended {
     previous_piece_velocity_ = T(0);
     level_ = T(1);
     turn_level_ = T(1);
-    sub_levels_.fill(T(1));
-    substeps_ = 1;
-    previous_measured_velocity_ = T(0);
-    previous_level_velocity_ = T(0);
     first_step_ = true;
     fixed_initial_level_ = false;
     x_ = T(0);
@@ -565,13 +541,12 @@ class Extended {
     // not: it is taken as at t_k) and the displacement is that of the extremum.
     const bool turns = value_of(c.turn) != 0.0;
     T level = c.level, at_turn = c.level;
-    T stribeck_here(1);
     if (p_.stribeck) {
       const auto& s = *p_.stribeck;
       const T excess = s.static_force / f0_ - T(1);
-      stribeck_here = T(1) + excess * stribeck_weight(v, s.stribeck_velocity, s.stribeck_exponent);
-      level *= stribeck_here;
-      if (turns) at_turn *= p_.frictional_lag ? stribeck_here : T(s.static_force / f0_);
+      const T here = T(1) + excess * stribeck_weight(v, s.stribeck_velocity, s.stribeck_exponent);
+      level *= here;
+      if (turns) at_turn *= p_.frictional_lag ? here : T(s.static_force / f0_);
     }
     if (p_.position_dependence) {
       const auto& pd = *p_.position_dependence;
@@ -596,7 +571,6 @@ class Extended {
     if (at_turn < T(kMinimumLevel)) at_turn = T(kMinimumLevel);
     level_ = level;
     turn_level_ = turns ? at_turn : level;
-    const bool first = first_step_;
     if (first_step_) {
       // The initial state is given at level 1 (header: Initial state).
       if constexpr (requires(Base & b, const T& l) { b.scale_state(l); })
@@ -605,46 +579,8 @@ class Extended {
     }
 
     const T asymmetry = p_.asymmetry ? p_.asymmetry->asymmetry : T(0);
-    // Sub-steps (header: The level inside an interval).
-    sub_levels_[0] = level;
-    substeps_ = 1;
-    if constexpr (std::is_same_v<Base, MaxwellSlip<T>>) {
-      const double v0 = value_of(previous_measured_velocity_),
-                   v1 = value_of(c.piece_velocity);
-      const double fastest = std::max(std::abs(v0), std::abs(v1));
-      if (p_.stribeck && !turns && !first && value_of(c.dx) != 0.0 && fastest > 0.0) {
-        const double s = std::ceil(8.0 * std::abs(v1 - v0) / fastest);
-        substeps_ = static_cast<std::size_t>(
-            std::clamp(s, 1.0, static_cast<double>(kLevelSubsteps)));
-      }
-      if (substeps_ > 1) {
-        const auto& sp = *p_.stribeck;
-        const T excess = sp.static_force / f0_ - T(1);
-        const T others = level / stribeck_here;  // the level's other factors, at the sample's value
-        const T v_before = previous_level_velocity_;
-        for (std::size_t u = 1; u < substeps_; ++u) {
-          const double theta = static_cast<double>(u) / static_cast<double>(substeps_);
-          const T vu = v_before + (v - v_before) * theta;
-          T lu = others *
-                 (T(1) + excess * stribeck_weight(vu, sp.stribeck_velocity, sp.stribeck_exponent));
-          if (lu < T(kMinimumLevel)) lu = T(kMinimumLevel);
-          sub_levels_[u - 1] = lu;
-        }
-        sub_levels_[substeps_ - 1] = level;
-      }
-    }
-    previous_measured_velocity_ = c.piece_velocity;
-    previous_level_velocity_ = v;
-    T base_force(0);
-    if (substeps_ > 1) {
-      const double share = 1.0 / static_cast<double>(substeps_);
-      const T dx = c.dx * share, dt = c.dt * share;
-      for (std::size_t u = 0; u < substeps_; ++u)
-        base_force = base_.step(Motion<T>{dx, c.velocity, dt, sub_levels_[u], asymmetry});
-    } else {
-      base_force =
-          base_.step(Motion<T>{c.dx, c.velocity, c.dt, level, asymmetry, c.turn, turn_level_});
-    }
+    const T base_force =
+        base_.step(Motion<T>{c.dx, c.velocity, c.dt, level, asymmetry, c.turn, turn_level_});
 
     T force = base_force;
     if (p_.viscous) force += p_.viscous->viscous * v;
@@ -658,11 +594,6 @@ class Extended {
   /// Level at the turn inside the last step's interval (motion.hpp, The level at the turn); the
   /// step's level when the interval holds no turn.
   const T& turn_level() const noexcept { return turn_level_; }
-  /// The levels of the last step's sub-steps, in order, the last the step's own level (header: The
-  /// level inside an interval); one entry when it had none.  Each sub-step moves by dx / size().
-  std::span<const T> sub_levels() const noexcept {
-    return std::span<const T>(sub_levels_.data(), substeps_);
-  }
   /// Lagged velocity v_l of the frictional-lag piece after the last step (0 without that piece).
   const T& lagged_velocity() const noexcept { return lagged_velocity_; }
 
@@ -710,10 +641,6 @@ class Extended {
   T previous_piece_velocity_{0};
   T level_{1};
   T turn_level_{1};
-  std::array<T, kLevelSubsteps> sub_levels_{};
-  std::size_t substeps_ = 1;
-  T previous_measured_velocity_{0};  // the pieces' velocity before any lag, last step
-  T previous_level_velocity_{0};     // the velocity the level used, last step
   bool first_step_ = true;            // the next step scales the base's state by its level
   bool fixed_initial_level_ = false;  // ... or by initial_level_
   T initial_level_{1};
