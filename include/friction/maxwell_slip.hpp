@@ -122,7 +122,8 @@ class MaxwellSlip {
       const T up_turn = at_turn * (T(1) + m.asymmetry), down_turn = at_turn * (T(1) - m.asymmetry);
       for (std::size_t i = 0; i < n; ++i) {
         const T lo = -down * limit[i], hi = up * limit[i];
-        const T turned = clamp(T(delta[i] + m.turn), T(-down_turn * limit[i]), T(up_turn * limit[i]));
+        const T turned =
+            clamp(T(delta[i] + m.turn), T(-down_turn * limit[i]), T(up_turn * limit[i]));
         delta[i] = clamp(T(turned + back), lo, hi);
         force += k[i] * delta[i];
       }

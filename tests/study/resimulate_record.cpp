@@ -2,6 +2,7 @@
 // its measurement changed, to tell which part of a record biases an estimate (run by hand).
 //
 //   resimulate_record SEED ID DIR [--no-encoder] [--no-noise] [--rate-factor K]
+//                     [--exact-derivatives]
 //
 // writes DIR/estimation.csv, DIR/validation.csv, DIR/read-options.txt (the CLI options the files
 // need) and DIR/truth.json, like the study's own record directory; the same system, motions and
@@ -12,7 +13,8 @@
 // true elements (k_i and Delta_i = alpha_i Fc / k_i, for a model file of the true system) and the
 // validation record's floors: the noise's, the reachable one (the sampled true system on the
 // recorded displacement, its speed-dependent terms fed the best fixed window's estimates), and
-// the same fed the exact v and a (the sampled system's own error).  E.g. README, "The discovery study's coverage".
+// the same fed the exact v and a (the sampled system's own error).  E.g. README, "The discovery
+// study's coverage".
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -91,7 +93,8 @@ int main(int argc, char** argv) {
     const Trace& t = r.trace_validation;
     const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;
     const Derivatives estimated = best_local_derivatives(t);
-    const std::vector<double> reachable = reachable_force(r.system, t, nv, r.validation, &estimated);
+    const std::vector<double> reachable =
+        reachable_force(r.system, t, nv, r.validation, &estimated);
     const std::vector<double> exact = reachable_force(r.system, t, nv, r.validation, nullptr);
     double noise_ss = 0, gap = 0, gap_exact = 0, total = 0;
     for (std::size_t k = 0; k < t.force.size(); ++k) {
