@@ -17,31 +17,32 @@ std::vector<double> turns_of(std::span<const double> x) {
 
 namespace {
 
-// One operator's clamp with the sensitivity d delta / d Delta when it ended on a bound (`bound`,
-// the factor of Delta in that bound; `clamped` true).  Through the turn when there is one, the step
-// to the extremum bounded by [lo_turn, hi_turn] (motion.hpp, The level at the turn): the bound it
-// last met is the one that counts.
+// One operator's clamp (threshold a, slip limits [-down a, up a]; on the step to the extremum
+// when the interval holds a turn, [-down_turn a, up_turn a]: motion.hpp, The level at the turn)
+// with the sensitivity d delta / d a when it ended on a bound (`clamped`; `bound` the factor of a
+// in that bound).  Through the turn the bound it last met is the one that counts.
 struct OperatorStep {
   double value;
   bool clamped;
-  double bound;  // d value / d Delta when clamped
+  double bound;  // d value / d a when clamped
 };
-inline OperatorStep step_operator(double v, double dx, double turn, double lo, double hi,
-                                  double lo_turn, double hi_turn, double f_lo, double f_hi,
-                                  double f_lo_turn, double f_hi_turn) {
+inline OperatorStep step_operator(double v, double dx, double turn, double a, double down,
+                                  double up, double down_turn, double up_turn) {
+  const double lo = -down * a, hi = up * a;
   if (turn != 0.0) {
+    const double lo_turn = -down_turn * a, hi_turn = up_turn * a;
     const double u1 = v + turn;
     const bool a1 = u1 > hi_turn, b1 = u1 < lo_turn;
     const double u2 = (a1 ? hi_turn : (b1 ? lo_turn : u1)) + (dx - turn);
-    if (u2 > hi) return {hi, true, f_hi};
-    if (u2 < lo) return {lo, true, f_lo};
-    if (a1) return {u2, true, f_hi_turn};
-    if (b1) return {u2, true, f_lo_turn};
+    if (u2 > hi) return {hi, true, up};
+    if (u2 < lo) return {lo, true, -down};
+    if (a1) return {u2, true, up_turn};
+    if (b1) return {u2, true, -down_turn};
     return {u2, false, 0.0};
   }
   const double u = v + dx;
-  if (u > hi) return {hi, true, f_hi};
-  if (u < lo) return {lo, true, f_lo};
+  if (u > hi) return {hi, true, up};
+  if (u < lo) return {lo, true, -down};
   return {u, false, 0.0};
 }
 
@@ -73,9 +74,7 @@ void trajectories_under_limits(std::span<const double> thresholds,
     const double down_turn = turned ? limits.turn_lower[ts] : down;
     for (std::size_t i = 0; i < m; ++i) {
       const OperatorStep s =
-          step_operator(v[i], dx, turn[ts], -down * thresholds[i], up * thresholds[i],
-                        -down_turn * thresholds[i], up_turn * thresholds[i], -down, up,
-                        -down_turn, up_turn);
+          step_operator(v[i], dx, turn[ts], thresholds[i], down, up, down_turn, up_turn);
       v[i] = s.value;
       const Eigen::Index at = static_cast<Eigen::Index>(i) * n + t;
       delta[at] = v[i];
@@ -92,24 +91,22 @@ void trajectories_under_limits(std::span<const double> thresholds,
 }  // namespace
 
 void check_slip_limits(const SlipLimits& limits, std::size_t samples) {
-  FRICTION_CHECK(limits.upper.size() == samples && limits.lower.size() == samples,
-                 "Maxwell Slip: slip limits for ", limits.upper.size(), " and ",
-                 limits.lower.size(), " samples, the record has ", samples);
+  // The slip-limit factors and those at the turns (empty: the slip limits'), by one rule.
+  const auto check_factors = [samples](const std::vector<double>& upper,
+                                       const std::vector<double>& lower, const char* what) {
+    FRICTION_CHECK(upper.size() == samples && lower.size() == samples, "Maxwell Slip: ", what,
+                   "s for ", upper.size(), " and ", lower.size(), " samples, the record has ",
+                   samples);
+    for (std::size_t t = 0; t < samples; ++t)
+      FRICTION_CHECK(upper[t] > 0.0 && lower[t] > 0.0 && std::isfinite(upper[t]) &&
+                         std::isfinite(lower[t]),
+                     "Maxwell Slip: ", what, " factors at sample ", t, " must be finite and > 0");
+  };
+  check_factors(limits.upper, limits.lower, "slip limit");
   FRICTION_CHECK(std::isfinite(limits.first) && limits.first > 0.0,
                  "Maxwell Slip: the first level ", limits.first, " must be finite and > 0");
-  for (std::size_t t = 0; t < samples; ++t)
-    FRICTION_CHECK(limits.upper[t] > 0.0 && limits.lower[t] > 0.0 &&
-                       std::isfinite(limits.upper[t]) && std::isfinite(limits.lower[t]),
-                   "Maxwell Slip: slip limit factors at sample ", t, " must be finite and > 0");
-  const bool turned = !limits.turn_upper.empty() || !limits.turn_lower.empty();
-  FRICTION_CHECK(!turned || (limits.turn_upper.size() == samples &&
-                             limits.turn_lower.size() == samples),
-                 "Maxwell Slip: turn limits for ", limits.turn_upper.size(), " and ",
-                 limits.turn_lower.size(), " samples, the record has ", samples);
-  for (std::size_t t = 0; turned && t < samples; ++t)
-    FRICTION_CHECK(limits.turn_upper[t] > 0.0 && limits.turn_lower[t] > 0.0 &&
-                       std::isfinite(limits.turn_upper[t]) && std::isfinite(limits.turn_lower[t]),
-                   "Maxwell Slip: turn limit factors at sample ", t, " must be finite and > 0");
+  if (!limits.turn_upper.empty() || !limits.turn_lower.empty())
+    check_factors(limits.turn_upper, limits.turn_lower, "turn limit");
 }
 
 void operator_trajectories(std::span<const double> thresholds,
@@ -181,8 +178,8 @@ void operator_trajectories(std::span<const double> thresholds,
     const double dx =
         t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
     for (std::size_t i = 0; i < m; ++i) {
-      const OperatorStep s = step_operator(v[i], dx, turn[static_cast<std::size_t>(t)], -limit[i],
-                                           limit[i], -limit[i], limit[i], -1.0, 1.0, -1.0, 1.0);
+      const OperatorStep s =
+          step_operator(v[i], dx, turn[static_cast<std::size_t>(t)], limit[i], 1.0, 1.0, 1.0, 1.0);
       v[i] = s.value;
       g_threshold[i] = s.clamped ? s.bound : g_threshold[i];
       g_initial[i] = s.clamped ? 0.0 : g_initial[i];

@@ -773,6 +773,32 @@ fs::path fresh_output_directory(const std::string& name) {
   return dir;
 }
 
+// A told-the-effect regression record: the plan's record `id` at `seed`, told its effects in the
+// directory study-output/`directory`; it must run, be eligible and validate within `max_ratio`
+// times its floor.  Returns the record's directory (told.json, truth.json), empty when it could
+// not be judged (a failure has been added).
+fs::path told_regression_record(std::uint64_t seed, const std::string& id,
+                                const std::string& directory, double max_ratio) {
+  const std::optional<RecordSpec> spec = plan_record(seed, id);
+  if (!spec) {
+    ADD_FAILURE() << id << " is not in the plan of seed " << seed;
+    return {};
+  }
+  const fs::path dir = fresh_output_directory(directory);
+  const ToldOutcome o = run_told(*spec, dir);
+  if (!o.error.empty()) {
+    ADD_FAILURE() << o.error;
+    return {};
+  }
+  if (!o.eligible) {
+    ADD_FAILURE() << "twin " << o.twin_percent << " % against its floor " << o.twin_floor;
+    return {};
+  }
+  EXPECT_LE(o.told_percent, max_ratio * o.floor)
+      << o.told_percent << " % against the floor " << o.floor;
+  return dir / "records" / id;
+}
+
 // A regression record: the study's record `frictional-lag+stribeck-2` at seed
 // 13684171016933042450 (envelope, 2240 Hz, lag 11.2 ms; its small loops reverse 2.2 ms apart at
 // the shortest, 28 ms at the median).  The told fit's lag grid stopped at the shortest interval
@@ -781,15 +807,9 @@ fs::path fresh_output_directory(const std::string& name) {
 // validation 1.21 times the floor.  Every piece's parameter is judged by its z-score.  (The
 // record comes from the study's plan: a change of the plan's generator changes it.)
 TEST(DiscoveryStudy, ToldLagBeyondTheShortestIntervalBetweenReversals) {
-  const std::string id = "frictional-lag+stribeck-2";
-  const std::optional<RecordSpec> spec = plan_record(13684171016933042450ULL, id);
-  ASSERT_TRUE(spec) << id;
-  const fs::path dir = fresh_output_directory("told-regression");
-  const ToldOutcome o = run_told(*spec, dir);
-  ASSERT_TRUE(o.error.empty()) << o.error;
-  ASSERT_TRUE(o.eligible) << "twin " << o.twin_percent << " % against its floor " << o.twin_floor;
-  EXPECT_LE(o.told_percent, 1.5 * o.floor) << o.told_percent << " % against the floor " << o.floor;
-  const fs::path rd = dir / "records" / id;
+  const fs::path rd = told_regression_record(13684171016933042450ULL, "frictional-lag+stribeck-2",
+                                             "told-regression", 1.5);
+  ASSERT_FALSE(rd.empty());
   // static, stribeck_velocity, stribeck_exponent, lag_time
   EXPECT_EQ(expect_told_parameters_within(rd, 3.0), 4);
 }
@@ -802,15 +822,9 @@ TEST(DiscoveryStudy, ToldLagBeyondTheShortestIntervalBetweenReversals) {
 // initial state (extension_fit.hpp, extended_state_size) on both records, the told fit must
 // validate within 1.2 times the floor with both parameters within 3 standard errors.
 TEST(DiscoveryStudy, ToldLagWithItsInitialStateEstimated) {
-  const std::string id = "frictional-lag+viscous-2";
-  const std::optional<RecordSpec> spec = plan_record(1218890284838083431ULL, id);
-  ASSERT_TRUE(spec) << id;
-  const fs::path dir = fresh_output_directory("told-lag-state");
-  const ToldOutcome o = run_told(*spec, dir);
-  ASSERT_TRUE(o.error.empty()) << o.error;
-  ASSERT_TRUE(o.eligible) << "twin " << o.twin_percent << " % against its floor " << o.twin_floor;
-  EXPECT_LE(o.told_percent, 1.2 * o.floor) << o.told_percent << " % against the floor " << o.floor;
-  const fs::path rd = dir / "records" / id;
+  const fs::path rd = told_regression_record(1218890284838083431ULL, "frictional-lag+viscous-2",
+                                             "told-lag-state", 1.2);
+  ASSERT_FALSE(rd.empty());
   EXPECT_EQ(expect_told_parameters_within(rd, 3.0), 2);  // viscous, lag_time
   // The validation record's lag offset is estimated and reported.
   const Json told = Json::parse(read_file((rd / "told.json").string()));
@@ -829,15 +843,9 @@ TEST(DiscoveryStudy, ToldLagWithItsInitialStateEstimated) {
 // may fail alone; the told fit must validate within 1.2 times the floor with every parameter
 // within 3 standard errors.
 TEST(DiscoveryStudy, ToldLagOnAStribeckCurveWhereTheBaseNeverSlides) {
-  const std::string id = "frictional-lag+stribeck-1";
-  const std::optional<RecordSpec> spec = plan_record(7594726044963748061ULL, id);
-  ASSERT_TRUE(spec) << id;
-  const fs::path dir = fresh_output_directory("told-no-sliding");
-  const ToldOutcome o = run_told(*spec, dir);
-  ASSERT_TRUE(o.error.empty()) << o.error;
-  ASSERT_TRUE(o.eligible) << "twin " << o.twin_percent << " % against its floor " << o.twin_floor;
-  EXPECT_LE(o.told_percent, 1.2 * o.floor) << o.told_percent << " % against the floor " << o.floor;
-  const fs::path rd = dir / "records" / id;
+  const fs::path rd = told_regression_record(7594726044963748061ULL, "frictional-lag+stribeck-1",
+                                             "told-no-sliding", 1.2);
+  ASSERT_FALSE(rd.empty());
   // static, stribeck_velocity, stribeck_exponent, lag_time
   EXPECT_EQ(expect_told_parameters_within(rd, 3.0), 4);
   const Json told = Json::parse(read_file((rd / "told.json").string()));
