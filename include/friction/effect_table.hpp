@@ -818,6 +818,7 @@ inline PieceStart start_from_regression(Effect e, const RegressionSignals& s) {
 struct ProfileScales {
   double reference_force = 0;            ///< F0 [N]
   double sliding_speed_95 = 0;           ///< 95th percentile of |v| while sliding [m/s]
+  double sliding_speed_50 = 0;           ///< median of the same speeds [m/s]
   double travel = 0;                     ///< max x - min x [m]
   double sample_travel = 0;              ///< median |dx| while moving [m]
   double reversal_interval = 0;          ///< shortest interval between two reversals [s]

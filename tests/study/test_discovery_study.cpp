@@ -945,6 +945,103 @@ TEST(DiscoveryStudy, ALagOnAStribeckCurveIsNamedWithIt) {
             4);
 }
 
+// Told a Stribeck curve, the fit finds the minimum (label long): on records of single-Stribeck
+// systems of the study's design with the displacement unquantised (the force noise as drawn),
+// `identify --extension stribeck` must fit the estimation record within 1.1 times the error of the
+// true system run through the same CLI (`validate --model-file`: the library's sampled model with
+// the true parameters, so the noise and the sampled model's own error are in both; the fit
+// minimises this very cost with more freedom, and 10 % is room for an order BIC chose lower).
+// Asserted on `stribeck-1` at seed 99991, a multisine whose Stribeck velocity is 3.8 times the
+// estimation record's 95th-percentile speed: there the profile over the curve with the base held
+// found nothing (its best point the smallest velocity) and the fit ended at 0.0045 % of the force
+// against the true system's 0.00072 % (noise-free: 0.0039 % against 0.0000 %).  Five more records
+// drawn from the run's seed are printed, and asserted only with FRICTION_STUDY_ASSERT=1: at 4
+// seeds (the commit seed of 423919b, 31337, 2718281828, 99991) 18 of 20 met the bound, and the
+// two that did not (1.19 and 1.30 times) have the curve's three parameters right and a base one
+// or two operators short of the system's, two pairs of close thresholds merged, that the order
+// growth of the restart did not split (extension_identify_slip.cpp, restart_base).
+TEST(DiscoveryStudy, ToldAStribeckCurveTheFitFindsTheMinimumOnCleanRecords) {
+  const auto [seed, origin] = study_seed();
+  std::vector<RecordSpec> specs;
+  if (auto s = plan_record(99991, "stribeck-1")) specs.push_back(*s);
+  for (int i = 1; i <= 5; ++i) {
+    RecordSpec s;
+    s.id = "clean-stribeck-" + std::to_string(i);
+    s.effects = {"stribeck"};
+    s.family = static_cast<Family>((static_cast<std::uint64_t>(i) + seed) % 3);
+    s.seed = splitmix(seed ^ (0x57b1becULL + static_cast<std::uint64_t>(i)));
+    specs.push_back(s);
+  }
+  ASSERT_EQ(specs.size(), 6u);  // the regression record first
+  const fs::path dir = fresh_output_directory("told-stribeck-clean");
+  std::printf("seed %llu (%s)\n", static_cast<unsigned long long>(seed), origin.c_str());
+  std::vector<std::string> failures(specs.size());
+  std::atomic<std::size_t> next{0};
+  auto worker = [&] {
+    for (std::size_t i; (i = next++) < specs.size();) {
+      const RecordSpec& spec = specs[i];
+      std::string& failure = failures[i];
+      try {
+        StudyRecord r = make_record(spec);
+        for (Measurement* m : {&r.estimation, &r.validation}) m->quantum = 0;
+        const NormalProgram* ne = r.normal_estimation ? &*r.normal_estimation : nullptr;
+        const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;
+        r.trace_estimation = simulate(r.system, *r.motion_estimation, ne, r.estimation);
+        r.trace_validation = simulate(r.system, *r.motion_validation, nv, r.validation);
+        const fs::path rd = dir / spec.id;
+        fs::create_directories(rd);
+        write_csv(r, true, (rd / "estimation.csv").string());
+        write_csv(r, false, (rd / "validation.csv").string());
+        // The true system as a model file of the library.
+        Json model = {{"type", "maxwell-slip"},
+                      {"units", {{"stiffness", "N/m"}, {"threshold", "m"}}}};
+        std::vector<double> k, delta;
+        for (const Element& e : r.system.elements) {
+          k.push_back(e.stiffness);
+          delta.push_back(e.share * r.system.coulomb / e.stiffness);
+        }
+        model["parameters"] = {{"stiffness", k}, {"threshold", delta}};
+        for (const TrueParameter& p : r.truth) model["extensions"][p.effect][p.name] = p.value;
+        std::ofstream(rd / "true-model.json") << model.dump(1);
+        const std::vector<std::string> read = split_options(r.read_options());
+        std::vector<std::string> truth_args = {"validate", "--model-file",
+                                               (rd / "true-model.json").string(), "--data",
+                                               (rd / "estimation.csv").string(), "--format",
+                                               "json"};
+        truth_args.insert(truth_args.end(), read.begin(), read.end());
+        if (run_cli(truth_args, (rd / "truth.json").string(), (rd / "truth.err").string()) != 0)
+          throw std::runtime_error("validate: " + read_file((rd / "truth.err").string()));
+        const Json truth = Json::parse(read_file((rd / "truth.json").string()));
+        const Json& tv = truth.contains("validation") ? truth.at("validation") : truth;
+        const double true_percent = tv.at("rss_sss_percent").get<double>();
+        std::vector<std::string> told_args = {"identify", "--model", "maxwell-slip", "--data",
+                                              (rd / "estimation.csv").string(), "--validate",
+                                              (rd / "validation.csv").string(), "--extension",
+                                              "stribeck", "--format", "json"};
+        told_args.insert(told_args.end(), read.begin(), read.end());
+        if (run_cli(told_args, (rd / "told.json").string(), (rd / "told.err").string()) != 0)
+          throw std::runtime_error("identify: " + read_file((rd / "told.err").string()));
+        const Json told = Json::parse(read_file((rd / "told.json").string()));
+        const double fit_percent = told.at("estimation").at("rss_sss_percent").get<double>();
+        std::printf("%-18s %s: fit %.3g %%, true system %.3g %%\n", spec.id.c_str(),
+                    r.summary().c_str(), fit_percent, true_percent);
+        if (!(fit_percent <= 1.1 * true_percent) && i > 0 && !assert_criteria())
+          std::printf("%-18s above 1.1 times the true system (not asserted: see the comment)\n",
+                      spec.id.c_str());
+        if (!(fit_percent <= 1.1 * true_percent) && (i == 0 || assert_criteria()))
+          failure = spec.id + ": the fit " + format("%.4g", fit_percent) +
+                    " % of the force, the true system " + format("%.4g", true_percent) + " %";
+      } catch (const std::exception& e) {
+        failure = spec.id + ": " + e.what();
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (std::size_t j = 0; j < std::min(job_count(), specs.size()); ++j) pool.emplace_back(worker);
+  for (auto& t : pool) t.join();
+  for (const std::string& f : failures) EXPECT_TRUE(f.empty()) << f;
+}
+
 TEST(DiscoveryStudy, NonlocalMemoryOnALugreBaseline) {
   const auto [seed, origin] = study_seed();
   std::vector<RecordSpec> plan;
