@@ -66,10 +66,7 @@ int main(int argc, char** argv) {
         m->sampling_rate *= rate_factor;
         m->samples = static_cast<std::size_t>(static_cast<double>(m->samples) * rate_factor);
       }
-      const NormalProgram* ne = r.normal_estimation ? &*r.normal_estimation : nullptr;
-      const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;
-      r.trace_estimation = simulate(r.system, *r.motion_estimation, ne, r.estimation);
-      r.trace_validation = simulate(r.system, *r.motion_validation, nv, r.validation);
+      simulate_traces(r);
     }
     std::filesystem::create_directories(dir);
     write_csv(r, true, (dir / "estimation.csv").string());
@@ -87,8 +84,8 @@ int main(int argc, char** argv) {
       }
     std::printf("%s\n", r.summary().c_str());
     std::printf("elements (k [N/m], Delta [m]):");
-    for (const Element& e : r.system.elements)
-      std::printf(" %.17g %.17g", e.stiffness, e.share * r.system.coulomb / e.stiffness);
+    for (std::size_t i = 0; i < r.system.elements.size(); ++i)
+      std::printf(" %.17g %.17g", r.system.elements[i].stiffness, r.system.threshold(i));
     std::printf("\n");
     const Trace& t = r.trace_validation;
     const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;

@@ -398,6 +398,13 @@ const std::vector<std::string>& injectable_effects() {
   return names;
 }
 
+void simulate_traces(StudyRecord& r) {
+  const NormalProgram* ne = r.normal_estimation ? &*r.normal_estimation : nullptr;
+  const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;
+  r.trace_estimation = simulate(r.system, *r.motion_estimation, ne, r.estimation);
+  r.trace_validation = simulate(r.system, *r.motion_validation, nv, r.validation);
+}
+
 StudyRecord make_record(const RecordSpec& spec) {
   for (const std::string& e : spec.effects)
     if (!has(injectable_effects(), e))
@@ -492,10 +499,7 @@ StudyRecord make_record(const RecordSpec& spec) {
   }
 
   // The records.
-  const NormalProgram* ne = r.normal_estimation ? &*r.normal_estimation : nullptr;
-  const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;
-  r.trace_estimation = simulate(r.system, *r.motion_estimation, ne, r.estimation);
-  r.trace_validation = simulate(r.system, *r.motion_validation, nv, r.validation);
+  simulate_traces(r);
   for (const std::string& e : spec.effects) r.contribution[e] = contribution_of(r, e);
   set_floors(r);
 
@@ -555,10 +559,7 @@ StudyRecord twin_without(const StudyRecord& r, const std::vector<std::string>& e
   t.motion_validation = r.motion_validation;
   t.normal_estimation = r.normal_estimation;
   t.normal_validation = r.normal_validation;
-  const NormalProgram* ne = t.normal_estimation ? &*t.normal_estimation : nullptr;
-  const NormalProgram* nv = t.normal_validation ? &*t.normal_validation : nullptr;
-  t.trace_estimation = simulate(t.system, *t.motion_estimation, ne, t.estimation);
-  t.trace_validation = simulate(t.system, *t.motion_validation, nv, t.validation);
+  simulate_traces(t);
   for (const TrueParameter& p : r.truth)
     if (!has(effects, p.effect)) t.truth.push_back(p);
   for (const auto& [e, c] : r.contribution)

@@ -116,6 +116,10 @@ std::optional<RecordSpec> plan_record(std::uint64_t seed, const std::string& id)
 /// Draws and simulates the record `spec` describes.
 StudyRecord make_record(const RecordSpec& spec);
 
+/// Simulates r's system under its motions, normal programs and measurements into its two traces
+/// (again after a measurement is changed, e.g. its encoder or noise).
+void simulate_traces(StudyRecord& r);
+
 /// Writes the estimation or validation trace as the record's file format says.
 void write_csv(const StudyRecord& r, bool estimation, const std::string& path);
 

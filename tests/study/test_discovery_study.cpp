@@ -984,10 +984,7 @@ TEST(DiscoveryStudy, ToldAStribeckCurveTheFitFindsTheMinimumOnCleanRecords) {
       try {
         StudyRecord r = make_record(spec);
         for (Measurement* m : {&r.estimation, &r.validation}) m->quantum = 0;
-        const NormalProgram* ne = r.normal_estimation ? &*r.normal_estimation : nullptr;
-        const NormalProgram* nv = r.normal_validation ? &*r.normal_validation : nullptr;
-        r.trace_estimation = simulate(r.system, *r.motion_estimation, ne, r.estimation);
-        r.trace_validation = simulate(r.system, *r.motion_validation, nv, r.validation);
+        simulate_traces(r);
         const fs::path rd = dir / spec.id;
         fs::create_directories(rd);
         write_csv(r, true, (rd / "estimation.csv").string());
@@ -996,9 +993,9 @@ TEST(DiscoveryStudy, ToldAStribeckCurveTheFitFindsTheMinimumOnCleanRecords) {
         Json model = {{"type", "maxwell-slip"},
                       {"units", {{"stiffness", "N/m"}, {"threshold", "m"}}}};
         std::vector<double> k, delta;
-        for (const Element& e : r.system.elements) {
-          k.push_back(e.stiffness);
-          delta.push_back(e.share * r.system.coulomb / e.stiffness);
+        for (std::size_t j = 0; j < r.system.elements.size(); ++j) {
+          k.push_back(r.system.elements[j].stiffness);
+          delta.push_back(r.system.threshold(j));
         }
         model["parameters"] = {{"stiffness", k}, {"threshold", delta}};
         for (const TrueParameter& p : r.truth) model["extensions"][p.effect][p.name] = p.value;
@@ -1025,10 +1022,11 @@ TEST(DiscoveryStudy, ToldAStribeckCurveTheFitFindsTheMinimumOnCleanRecords) {
         const double fit_percent = told.at("estimation").at("rss_sss_percent").get<double>();
         std::printf("%-18s %s: fit %.3g %%, true system %.3g %%\n", spec.id.c_str(),
                     r.summary().c_str(), fit_percent, true_percent);
-        if (!(fit_percent <= 1.1 * true_percent) && i > 0 && !assert_criteria())
+        if (fit_percent <= 1.1 * true_percent) continue;
+        if (i > 0 && !assert_criteria())  // i == 0: the regression record, always asserted
           std::printf("%-18s above 1.1 times the true system (not asserted: see the comment)\n",
                       spec.id.c_str());
-        if (!(fit_percent <= 1.1 * true_percent) && (i == 0 || assert_criteria()))
+        else
           failure = spec.id + ": the fit " + format("%.4g", fit_percent) +
                     " % of the force, the true system " + format("%.4g", true_percent) + " %";
       } catch (const std::exception& e) {
