@@ -48,8 +48,11 @@ bool has(const std::vector<std::string>& v, const std::string& e) {
 TEST(DelayFindings, NoneOnRecordsWithoutADelay) {
   std::vector<truth::RecordSpec> specs;
   // The discovery study's records at 8e44206's seed (10251354291482620972).
-  specs.push_back({"none-01", {}, "maxwell-slip", truth::Family::envelope, 15848307424988192698ULL});
-  specs.push_back({"none-15", {}, "maxwell-slip", truth::Family::envelope, 15850877211552078544ULL});
+  // Records of that day's study, so their validation design is drawn again as it was then.
+  specs.push_back({"none-01", {}, "maxwell-slip", truth::Family::envelope, 15848307424988192698ULL,
+                   truth::ValidationDesign::independent_design});
+  specs.push_back({"none-15", {}, "maxwell-slip", truth::Family::envelope, 15850877211552078544ULL,
+                   truth::ValidationDesign::independent_design});
   // Fresh records, every excitation family (envelope twice: its presliding loops reverse most).
   for (std::uint64_t k = 0; k < 4; ++k)
     specs.push_back({"fresh-" + std::to_string(k), {}, "maxwell-slip",

@@ -92,6 +92,7 @@ TEST(OrderGrowth, TheStudyRecordThatLedHereReachesTheFloor) {
   spec.effects = {"normal-load"};
   spec.family = truth::Family::envelope;
   spec.seed = 2539026706453809786ULL;
+  spec.validation = truth::ValidationDesign::independent_design;  // the record as the study drew it
   const Told t = told_case(spec, Effect::normal_load);
   ASSERT_TRUE(t.eligible) << spec.id << ": the base on the twin " << t.twin;
   EXPECT_LE(t.told, 1.2) << spec.id;

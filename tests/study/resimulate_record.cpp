@@ -2,14 +2,16 @@
 // its measurement changed, to tell which part of a record biases an estimate (run by hand).
 //
 //   resimulate_record SEED ID DIR [--no-encoder] [--no-noise] [--rate-factor K]
-//                     [--exact-derivatives]
+//                     [--exact-derivatives] [--independent-design]
 //
 // writes DIR/estimation.csv, DIR/validation.csv, DIR/read-options.txt (the CLI options the files
 // need) and DIR/truth.json, like the study's own record directory; the same system, motions and
 // normal programs.  --no-encoder: the displacement unquantised; --no-noise: force noise of
 // 1e-6 Fc, white (not zero: a fit's standard errors stay defined); --rate-factor K: K times the
 // sampling rate over the same durations; --exact-derivatives: DIR/exact-estimation.csv and
-// DIR/exact-validation.csv, the exact v(t_k) and a(t_k) [m/s, m/s^2] of each record.  It prints the
+// DIR/exact-validation.csv, the exact v(t_k) and a(t_k) [m/s, m/s^2] of each record;
+// --independent-design: the validation motion of a study run before 2026-11-29 (study_design.hpp,
+// ValidationDesign).  It prints the
 // true elements (k_i and Delta_i = alpha_i Fc / k_i, for a model file of the true system) and the
 // validation record's floors: the noise's, the reachable one (the sampled true system on the
 // recorded displacement, its speed-dependent terms fed the best fixed window's estimates), and
@@ -28,7 +30,7 @@ int main(int argc, char** argv) {
   using namespace truth;
   if (argc < 4) {
     std::fprintf(stderr, "usage: %s SEED ID DIR [--no-encoder] [--no-noise] [--rate-factor K] "
-                 "[--exact-derivatives]\n",
+                 "[--exact-derivatives] [--independent-design]\n",
                  argv[0]);
     return 2;
   }
@@ -38,12 +40,15 @@ int main(int argc, char** argv) {
     const std::filesystem::path dir = argv[3];
     bool encoder = true, noise = true, exact_derivatives = false;
     double rate_factor = 1;
+    ValidationDesign validation = ValidationDesign::another_realisation;
     for (int i = 4; i < argc; ++i) {
       const std::string a = argv[i];
       if (a == "--no-encoder") {
         encoder = false;
       } else if (a == "--exact-derivatives") {
         exact_derivatives = true;
+      } else if (a == "--independent-design") {
+        validation = ValidationDesign::independent_design;
       } else if (a == "--no-noise") {
         noise = false;
       } else if (a == "--rate-factor" && i + 1 < argc) {
@@ -53,7 +58,7 @@ int main(int argc, char** argv) {
         throw std::invalid_argument("unknown argument '" + a + "'");
       }
     }
-    const std::optional<RecordSpec> spec = plan_record(seed, id);
+    const std::optional<RecordSpec> spec = plan_record(seed, id, validation);
     if (!spec) {
       std::fprintf(stderr, "error: no record '%s' in the plan of seed %s\n", id.c_str(), argv[1]);
       return 1;

@@ -12,6 +12,7 @@
 #include <random>
 #include <sstream>
 #include <stdexcept>
+#include <variant>
 
 namespace truth {
 
@@ -54,10 +55,19 @@ bool has(const std::vector<std::string>& v, const std::string& name) {
 
 // ------------------------------------------------------------------------------- excitations
 
+// A stroke program's design: its speeds (relative to the slowest, laid out at u_min = 1), the
+// stroke, the presliding loop, the rests, and the slowest speed u_min [m/s] that the first
+// realisation's duration set.
+struct StrokeDesign {
+  std::vector<double> speeds;
+  double stroke = 0, loop = 0, loop_speed = 0.5, rest = 0, u_min = 0;
+};
+
 struct MotionDraw {
   std::unique_ptr<Excitation> motion;
   bool rests = false;
   int distinct_speeds = 0;
+  std::variant<EnvelopeProgram, StrokeDesign, MultisineProgram> design;
 };
 
 MotionDraw draw_envelope(Rng& rng, double travel, double duration, double max_threshold) {
@@ -71,52 +81,58 @@ MotionDraw draw_envelope(Rng& rng, double travel, double duration, double max_th
   p.chi = rng.uniform(0, 2 * std::numbers::pi);
   p.w1 = rng.uniform(0.55, 0.8);
   p.w2 = 1 - p.w1;
-  return {make_envelope(p), false, 10};
+  return {make_envelope(p), false, 10, p};
 }
 
 // Strokes of length S at n_s speeds (a decade or more apart) in shuffled rounds, directions
-// alternating, each followed by a rest, a small presliding loop and another rest.  Durations are
-// laid out for u_min = 1 and then scaled so that the program covers `total` seconds from `start`.
-MotionDraw draw_strokes(Rng& rng, double travel, double start, double total, double max_threshold) {
-  const int n_speeds = rng.integer(3, 6);
-  const double span = std::pow(10.0, rng.uniform(0.8, 1.3));
-  std::vector<double> speeds;
-  for (int j = 0; j < n_speeds; ++j)
-    speeds.push_back(std::pow(span, static_cast<double>(j) / (n_speeds - 1)));
-  const double stroke = travel * rng.uniform(0.6, 1.0);
-  const double loop = std::min(rng.uniform(0.3, 0.8) * max_threshold, 0.2 * stroke);
-  const double loop_speed = 0.5, rest = rng.uniform(0.05, 0.15) * stroke;
-  const int rounds = rng.integer(2, 4);
+// alternating, each followed by a rest, a small presliding loop and another rest, from `start`.
+// `rounds` rounds, or (rounds = 0) as many as it takes to cover `total` seconds at the design's
+// u_min.  The pieces are laid out at u_min = 1 and scaled by the design's u_min.
+StrokeProgram lay_out_strokes(Rng& rng, StrokeDesign& d, int rounds, double start, double total) {
   StrokeProgram p;
   p.start = start;
-  auto piece = [&](double v, double d) {
+  double relative = 0;
+  auto piece = [&](double v, double dur) {
     p.velocity.push_back(v);
-    p.duration.push_back(d);
+    p.duration.push_back(dur);
+    relative += dur;
   };
   double direction = rng.sign();
-  piece(0.0, rest);
-  for (int r = 0; r < rounds; ++r) {
-    rng.shuffle(speeds);
-    for (double s : speeds) {
-      piece(direction * s, stroke / s);
-      piece(0.0, rest);
-      piece(-direction * loop_speed, loop / loop_speed);
-      piece(direction * loop_speed, loop / loop_speed);
-      piece(0.0, rest);
+  piece(0.0, d.rest);
+  for (int r = 0; rounds > 0 ? r < rounds : relative * (1 / d.u_min) < total; ++r) {
+    rng.shuffle(d.speeds);
+    for (double s : d.speeds) {
+      piece(direction * s, d.stroke / s);
+      piece(0.0, d.rest);
+      piece(-direction * d.loop_speed, d.loop / d.loop_speed);
+      piece(direction * d.loop_speed, d.loop / d.loop_speed);
+      piece(0.0, d.rest);
       direction = -direction;
     }
   }
-  double relative = 0;
-  for (double d : p.duration) relative += d;
-  const double u_min = relative / total;  // [m/s]
+  if (rounds > 0) d.u_min = relative / total;  // [m/s]
   double shortest = 1e300;
   for (std::size_t j = 0; j < p.velocity.size(); ++j) {
-    p.velocity[j] *= u_min;
-    p.duration[j] /= u_min;
+    p.velocity[j] *= d.u_min;
+    p.duration[j] /= d.u_min;
     shortest = std::min(shortest, p.duration[j]);
   }
   p.width = shortest / 8;
-  return {make_strokes(p), true, n_speeds};
+  return p;
+}
+
+MotionDraw draw_strokes(Rng& rng, double travel, double start, double total, double max_threshold) {
+  StrokeDesign d;
+  const int n_speeds = rng.integer(3, 6);
+  const double span = std::pow(10.0, rng.uniform(0.8, 1.3));
+  for (int j = 0; j < n_speeds; ++j)
+    d.speeds.push_back(std::pow(span, static_cast<double>(j) / (n_speeds - 1)));
+  d.stroke = travel * rng.uniform(0.6, 1.0);
+  d.loop = std::min(rng.uniform(0.3, 0.8) * max_threshold, 0.2 * d.stroke);
+  d.rest = rng.uniform(0.05, 0.15) * d.stroke;
+  const int rounds = rng.integer(2, 4);
+  const StrokeProgram p = lay_out_strokes(rng, d, rounds, start, total);
+  return {make_strokes(p), true, n_speeds, d};
 }
 
 MotionDraw draw_multisine(Rng& rng, double travel, double duration) {
@@ -134,7 +150,7 @@ MotionDraw draw_multisine(Rng& rng, double travel, double duration) {
     sum += p.amplitude.back();
   }
   for (double& a : p.amplitude) a *= travel / 2 / sum;
-  return {make_multisine(p), false, 10};
+  return {make_multisine(p), false, 10, p};
 }
 
 MotionDraw draw_motion(Family family, Rng& rng, double travel, const Measurement& m,
@@ -149,6 +165,28 @@ MotionDraw draw_motion(Family family, Rng& rng, double travel, const Measurement
       return draw_strokes(rng, travel, -m.warm_up, m.warm_up + duration * 1.02, max_threshold);
   }
   throw std::logic_error("draw_motion: unknown family");
+}
+
+// Another realisation of `first`'s design for measurement `m`: the multisine's amplitudes and
+// frequencies with new phases, the envelope's carriers and envelope with new phases, the strokes'
+// speeds, lengths, loops and rests in a new order, as many rounds as cover m's duration.  The
+// motion's scales -- speeds, accelerations, amplitudes -- are the first realisation's.
+MotionDraw draw_realisation(const MotionDraw& first, Rng& rng, const Measurement& m) {
+  const double duration = static_cast<double>(m.samples) / m.sampling_rate;
+  if (const auto* e = std::get_if<EnvelopeProgram>(&first.design)) {
+    EnvelopeProgram p = *e;
+    p.psi = rng.uniform(0, 2 * std::numbers::pi);
+    p.chi = rng.uniform(0, 2 * std::numbers::pi);
+    return {make_envelope(p), first.rests, first.distinct_speeds, p};
+  }
+  if (const auto* ms = std::get_if<MultisineProgram>(&first.design)) {
+    MultisineProgram p = *ms;
+    for (double& phase : p.phase) phase = rng.uniform(0, 2 * std::numbers::pi);
+    return {make_multisine(p), first.rests, first.distinct_speeds, p};
+  }
+  StrokeDesign d = std::get<StrokeDesign>(first.design);
+  const StrokeProgram p = lay_out_strokes(rng, d, 0, -m.warm_up, m.warm_up + duration * 1.02);
+  return {make_strokes(p), first.rests, first.distinct_speeds, d};
 }
 
 NormalProgram draw_normal(Rng& rng, double mean, double duration) {
@@ -463,7 +501,9 @@ StudyRecord make_record(const RecordSpec& spec) {
     m->noise_seed = rng.seed();
   }
   MotionDraw est = draw_motion(spec.family, rng, r.travel, r.estimation, max_threshold);
-  MotionDraw val = draw_motion(spec.family, rng, r.travel, r.validation, max_threshold);
+  MotionDraw val = spec.validation == ValidationDesign::another_realisation
+                       ? draw_realisation(est, rng, r.validation)
+                       : draw_motion(spec.family, rng, r.travel, r.validation, max_threshold);
   r.motion_estimation = std::move(est.motion);
   r.motion_validation = std::move(val.motion);
   r.has_rests = est.rests && val.rests;
@@ -702,9 +742,13 @@ std::vector<RecordSpec> study_plan(std::uint64_t seed) {
   return plan;
 }
 
-std::optional<RecordSpec> plan_record(std::uint64_t seed, const std::string& id) {
+std::optional<RecordSpec> plan_record(std::uint64_t seed, const std::string& id,
+                                      ValidationDesign validation) {
   for (RecordSpec& s : study_plan(seed))
-    if (s.id == id) return std::move(s);
+    if (s.id == id) {
+      s.validation = validation;
+      return std::move(s);
+    }
   return std::nullopt;
 }
 

@@ -10,8 +10,10 @@
 //   * an encoder step from X/30000 to X/1000 (never below 1 nm), an absolute position offset;
 //   * force noise of 0.1-2 % of Fc, white on half of the records and AR(1) with phi 0.3-0.95 on
 //     the other half;
-//   * an excitation family (envelope, strokes with rests, multisine), the same family for the
-//     estimation and the validation record but another realisation;
+//   * an excitation family (envelope, strokes with rests, multisine) and its design (carrier and
+//     envelope frequencies; tones and amplitudes; stroke speeds, lengths, loops and rests), the
+//     validation record another realisation of the estimation record's design (new phases, a new
+//     order of the strokes; ValidationDesign says why);
 //   * each injected effect's shape at random (Stribeck exponent 0.5-2.5, Stribeck velocity over
 //     two decades around the median sliding speed, wavelength 6-30 % of the travel, ...) and its
 //     magnitude set so that its contribution to the validation record -- the RMS of the force with
@@ -40,12 +42,25 @@ enum class Family { envelope, strokes, multisine };
 std::string family_name(Family f);
 
 /// What the study asks for: the injected effects by their methods.md section 7 names.
+/// How the validation record's motion relates to the estimation record's.
+enum class ValidationDesign {
+  /// The same excitation design, another realisation (new phases, a new order of the strokes):
+  /// the validation record moves at the speeds and accelerations the estimation record holds, as
+  /// the validation record of one experiment does.
+  another_realisation,
+  /// The same family, its design drawn again: speeds up to 5x apart from the estimation
+  /// record's, so a speed-dependent piece is validated where the estimation record never went.
+  /// Every record made before 2026-11-29; kept for the regression tests that name such records.
+  independent_design,
+};
+
 struct RecordSpec {
   std::string id;
   std::vector<std::string> effects;  ///< "frictional-lag" needs "viscous" or "stribeck" with it
   std::string baseline = "maxwell-slip";
   Family family = Family::envelope;
   std::uint64_t seed = 1;
+  ValidationDesign validation = ValidationDesign::another_realisation;
 };
 
 /// How a record's files are written and how the CLI is told to read them.
@@ -110,8 +125,11 @@ std::uint64_t splitmix(std::uint64_t x);
 /// and 22 records with no effect.  Shared with resimulate_record, which rebuilds one of them.
 std::vector<RecordSpec> study_plan(std::uint64_t seed);
 
-/// The record `id` of study_plan(seed), or nothing when the plan has no such record.
-std::optional<RecordSpec> plan_record(std::uint64_t seed, const std::string& id);
+/// The record `id` of study_plan(seed), or nothing when the plan has no such record.  A record
+/// of a study run before 2026-11-29 is drawn again with ValidationDesign::independent_design.
+std::optional<RecordSpec> plan_record(
+    std::uint64_t seed, const std::string& id,
+    ValidationDesign validation = ValidationDesign::another_realisation);
 
 /// Draws and simulates the record `spec` describes.
 StudyRecord make_record(const RecordSpec& spec);

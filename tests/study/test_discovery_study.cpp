@@ -779,7 +779,8 @@ fs::path fresh_output_directory(const std::string& name) {
 // not be judged (a failure has been added).
 fs::path told_regression_record(std::uint64_t seed, const std::string& id,
                                 const std::string& directory, double max_ratio) {
-  const std::optional<RecordSpec> spec = plan_record(seed, id);
+  const std::optional<RecordSpec> spec =
+      plan_record(seed, id, ValidationDesign::independent_design);
   if (!spec) {
     ADD_FAILURE() << id << " is not in the plan of seed " << seed;
     return {};
@@ -859,7 +860,8 @@ TEST(DiscoveryStudy, ToldLagOnAStribeckCurveWhereTheBaseNeverSlides) {
 int expect_exact_with_parameters_within(std::uint64_t seed, const std::string& id,
                                         const std::string& directory, double max_z,
                                         bool model_free_only) {
-  const std::optional<RecordSpec> spec = plan_record(seed, id);
+  const std::optional<RecordSpec> spec =
+      plan_record(seed, id, ValidationDesign::independent_design);
   if (!spec) {
     ADD_FAILURE() << id << " is not in the plan of seed " << seed;
     return 0;
@@ -892,7 +894,8 @@ int expect_exact_with_parameters_within(std::uint64_t seed, const std::string& i
 TEST(DiscoveryStudy, APieceBesideAnOperatorTheForceDoesNotFeelHasAStandardError) {
   const std::uint64_t seed = 4142990654516801226ULL;
   const std::string id = "asymmetry-3";
-  const std::optional<RecordSpec> spec = plan_record(seed, id);
+  const std::optional<RecordSpec> spec =
+      plan_record(seed, id, ValidationDesign::independent_design);
   ASSERT_TRUE(spec) << id << " is not in the plan of seed " << seed;
   const fs::path dir = fresh_output_directory("standard-error-regression");
   const Outcome o = run_record(*spec, dir);
@@ -963,7 +966,8 @@ TEST(DiscoveryStudy, ALagOnAStribeckCurveIsNamedWithIt) {
 TEST(DiscoveryStudy, ToldAStribeckCurveTheFitFindsTheMinimumOnCleanRecords) {
   const auto [seed, origin] = study_seed();
   std::vector<RecordSpec> specs;
-  if (auto s = plan_record(99991, "stribeck-1")) specs.push_back(*s);
+  if (auto s = plan_record(99991, "stribeck-1", ValidationDesign::independent_design))
+    specs.push_back(*s);
   for (int i = 1; i <= 5; ++i) {
     RecordSpec s;
     s.id = "clean-stribeck-" + std::to_string(i);
