@@ -13,6 +13,7 @@
 #include "../parallel_for.hpp"
 #include "commands.hpp"
 #include "friction/methods.hpp"
+#include "friction/speed_coverage.hpp"
 #include "progress.hpp"
 #include "report_option.hpp"
 
@@ -203,10 +204,16 @@ int run_identify(const IdentifyOptions& o) {
   doc["identification"] = report_to_json(m.report);
   if (!m.extensions.is_null()) doc["extensions"] = m.extensions;
   doc["seconds"] = m.report.seconds;
+  // Kept in the document, so that `validate` given it can say when another record leaves it.
+  const double largest = largest_speed(rs.estimation);
+  doc["estimation"]["largest_speed"] = largest;
   std::optional<Validation> val;
   if (rs.has_validation) {
     val = validate_model(m.model, rs.validation);
     doc["validation"] = validation_json(*val);
+    if (auto w = speed_extrapolation_warning(speed_coverage(largest, rs.validation),
+                                             speed_dependent_terms(doc["model"])))
+      add_warnings(doc, {*w});
   }
   if (!o.report.empty()) {
     // The estimation run the method reported; the validation run validate_model gave.
@@ -266,10 +273,18 @@ int run_validate(const ValidateOptions& o) {
   doc["model"] = model.to_json();
   const Validation v = validate_model(model, r);
   doc["validation"] = validation_json(v);
+  // An identify document carries the parameters' intervals (the report shows them) and the
+  // largest speed of its estimation record.
+  const Json file = read_json_file(o.model_file);
+  if (file.is_object() && file.contains("estimation") && file["estimation"].is_object() &&
+      file["estimation"].contains("largest_speed") &&
+      file["estimation"]["largest_speed"].is_number())
+    if (auto w = speed_extrapolation_warning(
+            speed_coverage(file["estimation"]["largest_speed"].get<double>(), r),
+            speed_dependent_terms(doc["model"])))
+      add_warnings(doc, {*w});
   if (!o.report.empty()) {
     Json shown = doc;
-    // An identify document carries the parameters' intervals: the report shows them.
-    const Json file = read_json_file(o.model_file);
     if (file.is_object() && file.contains("identification"))
       shown["identification"] = file["identification"];
     write_report_file(o.report,
@@ -314,6 +329,7 @@ int run_compare(const CompareOptions& o) {
     std::optional<report::MethodFit> fit;
   };
   std::vector<Outcome> outcomes(o.methods.size());
+  const SpeedCoverage coverage = speed_coverage(largest_speed(rs.estimation), rs.validation);
   // DNLRX takes its thresholds from NLR's order selection.  When both are compared, DNLRX reuses
   // the NLR identified here (MethodOptions::maxwell_slip_report, the same result) instead of
   // fitting M = 1..6 again: it waits for NLR's report, which is signalled as soon as NLR's
@@ -360,6 +376,10 @@ int run_compare(const CompareOptions& o) {
       row["validation"] = validation_json(v);
       row["identification"] = report_to_json(m.report);
       row["warnings"] = m.report.warnings;
+      if (auto w = speed_extrapolation_warning(coverage, speed_dependent_terms(row["model"]))) {
+        out.warnings.push_back(method_name(type) + ": " + *w);
+        row["warnings"].push_back(*w);
+      }
       if (!o.report.empty())
         out.fit = report::MethodFit{method_name(type),
                                     m.report.estimation_simulated.size() == rs.estimation.size()
