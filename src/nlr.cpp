@@ -774,7 +774,15 @@ bool threshold_moves(
 // grid points and the three starts of one threshold are nearly collinear, and the active set's
 // column-pivoted QR of the free columns takes what the directions kept (eigenvalues above 1e-13 of
 // the largest) can resolve.
-void dictionary_operators(Data& d) {
+//
+// `added` (optional): signals a_j(t_k) fitted beside the grid's columns with free coefficients,
+// returned in `added_coefficients` (in the force's units per unit of a_j); the dictionary's
+// operators are then those of the force with them taken out (dictionary_added_coefficients).
+void dictionary_operators(Data& d, std::span<const std::vector<double>> added = {},
+                          std::span<const double> added_lower = {},
+                          std::vector<double>* added_coefficients = nullptr,
+                          double* residual_variance = nullptr) {
+  if (added_coefficients) added_coefficients->clear();
   const double decades = std::log10(d.sb.hi / d.sb.lo);
   const std::size_t g = static_cast<std::size_t>(std::ceil(16.0 * decades)) + 1;
   const std::size_t n = d.x.size();
@@ -799,14 +807,14 @@ void dictionary_operators(Data& d) {
     cols.emplace_back(j, 0.0);
     if (wiped[j] > 1) cols.emplace_back(j, 1.0), cols.emplace_back(j, -1.0);
   }
-  const std::size_t p = cols.size();
+  const std::size_t p_operators = cols.size(), p = p_operators + added.size();
   const Eigen::Index pi = static_cast<Eigen::Index>(p);
   const std::size_t stride = (n + 65535) / 65536;
   constexpr Eigen::Index kRows = 1024;
   Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(pi + 1, pi + 1);
   Eigen::MatrixXd block(kRows, pi + 1);
-  std::vector<double> z(p);
-  for (std::size_t c = 0; c < p; ++c) z[c] = cols[c].second * thr[cols[c].first];
+  std::vector<double> z(p_operators);
+  for (std::size_t c = 0; c < p_operators; ++c) z[c] = cols[c].second * thr[cols[c].first];
   Eigen::Index rows = 0;
   for (std::size_t t = 0; t < n; ++t) {
     const double dx = t > 0 ? d.x[t] - d.x[t - 1] : 0.0;
@@ -816,7 +824,7 @@ void dictionary_operators(Data& d) {
     const bool turned = d.limits && !d.limits->turn_upper.empty();
     const double up_turn = turned ? d.limits->turn_upper[t] : up;
     const double down_turn = turned ? d.limits->turn_lower[t] : down;
-    for (std::size_t c = 0; c < p; ++c) {
+    for (std::size_t c = 0; c < p_operators; ++c) {
       const double a = thr[cols[c].first];
       if (turn != 0.0)  // motion.hpp, Turns between samples (and The level at the turn)
         z[c] = std::clamp(std::clamp(z[c] + turn, -down_turn * a, up_turn * a) + (dx - turn),
@@ -825,7 +833,9 @@ void dictionary_operators(Data& d) {
         z[c] = std::clamp(z[c] + dx, -down * a, up * a);
     }
     if (t % stride != 0) continue;
-    for (std::size_t c = 0; c < p; ++c) block(rows, static_cast<Eigen::Index>(c)) = z[c];
+    for (std::size_t c = 0; c < p_operators; ++c) block(rows, static_cast<Eigen::Index>(c)) = z[c];
+    for (std::size_t j = 0; j < added.size(); ++j)
+      block(rows, static_cast<Eigen::Index>(p_operators + j)) = added[j][t];
     block(rows, pi) = d.y(static_cast<Eigen::Index>(t));
     if (++rows == kRows || t + stride >= n) {
       gram.selfadjointView<Eigen::Lower>().rankUpdate(block.topRows(rows).transpose());
@@ -849,11 +859,29 @@ void dictionary_operators(Data& d) {
       as.row(e) = std::sqrt(lambda(e)) * eig.eigenvectors().col(e).transpose();
       bs(e) = eig.eigenvectors().col(e).dot(atb) / std::sqrt(lambda(e));
     }
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  Eigen::VectorXd lower = Eigen::VectorXd::Zero(pi);
+  for (std::size_t j = 0; j < added.size(); ++j)
+    lower(static_cast<Eigen::Index>(p_operators + j)) =
+        j < added_lower.size() ? added_lower[j] / d.scale : -kInf;
   const Eigen::VectorXd k = detail::box_least_squares_reduced(
-      as, bs, scale, std::sqrt(std::max(gram(pi, pi), 0.0)), Eigen::VectorXd::Zero(pi),
-      Eigen::VectorXd::Constant(pi, std::numeric_limits<double>::infinity()), nullptr);
+      as, bs, scale, std::sqrt(std::max(gram(pi, pi), 0.0)), lower,
+      Eigen::VectorXd::Constant(pi, kInf), nullptr);
+  if (added_coefficients) {
+    added_coefficients->resize(added.size());
+    for (std::size_t j = 0; j < added.size(); ++j)
+      (*added_coefficients)[j] = k(static_cast<Eigen::Index>(p_operators + j)) * d.scale;
+  }
+  if (residual_variance) {
+    // ||y - A k||^2 = y'y - 2 k'A'y + k'A'A k, over the rows accumulated.
+    const Eigen::MatrixXd ata = gram.topLeftCorner(pi, pi).selfadjointView<Eigen::Lower>();
+    const double rss = std::max(
+        0.0, gram(pi, pi) - 2.0 * k.dot(gram.row(pi).head(pi).transpose()) + k.dot(ata * k));
+    const double rows_used = static_cast<double>((n + stride - 1) / stride);
+    *residual_variance = rss / std::max(1.0, rows_used - static_cast<double>(p)) * d.scale * d.scale;
+  }
   std::vector<double> total(g, 0.0);
-  for (std::size_t c = 0; c < p; ++c)
+  for (std::size_t c = 0; c < p_operators; ++c)
     total[cols[c].first] += std::max(0.0, k(static_cast<Eigen::Index>(c)));
   d.dictionary.clear();
   d.dictionary_ratio = thr[1] / thr[0];
@@ -1354,6 +1382,36 @@ NlrResult identify_maxwell_slip_under_limits(std::span<const double> time,
                                              const NlrOptions& options, const SlipLimits& limits) {
   check_slip_limits(limits, x.size());
   return identify(time, x, force, options, &limits);
+}
+
+std::vector<double> dictionary_added_coefficients(std::span<const double> x,
+                                                  std::span<const double> force,
+                                                  std::span<const std::vector<double>> added,
+                                                  std::span<const double> lower,
+                                                  double displacement_resolution_hint,
+                                                  const SlipLimits* limits,
+                                                  double* residual_variance) {
+  FRICTION_CHECK(x.size() == force.size() && x.size() >= 20,
+                 "dictionary_added_coefficients: lengths differ or too few samples");
+  for (const auto& a : added)
+    FRICTION_CHECK(a.size() == x.size(), "dictionary_added_coefficients: a signal's length differs");
+  if (limits) check_slip_limits(*limits, x.size());
+  Data d;
+  d.x = x;
+  d.turns = turns_of(x);
+  d.force = force;
+  d.limits = limits;
+  const Eigen::Map<const Eigen::VectorXd> f(force.data(), static_cast<Eigen::Index>(force.size()));
+  d.scale = std::sqrt(f.squaredNorm() / static_cast<double>(f.size()));
+  const double q = displacement_resolution_hint > 0 ? displacement_resolution_hint
+                                                    : displacement_resolution(x);
+  const double travel = largest_travel(x);
+  if (!(d.scale > 0.0) || !(travel > 2.0 * q)) return {};
+  d.y = f / d.scale;
+  d.sb = StickBreaking{q, travel};
+  std::vector<double> beta;
+  dictionary_operators(d, added, lower, &beta, residual_variance);
+  return beta;
 }
 
 }  // namespace detail

@@ -94,6 +94,22 @@ NlrResult identify_maxwell_slip_under_limits(std::span<const double> time,
                                              const NlrOptions& options,
                                              const SlipLimits& limits);
 
+/// The coefficients of signals a_j(t_k) fitted beside the operators of NLR's dictionary (nlr.cpp,
+/// dictionary_operators: NNLS over a dense grid of thresholds and initial states, the a_j's
+/// coefficients free), in the force's units per unit of a_j; empty when the record gives no
+/// dictionary.  `lower`: a lower bound per coefficient (none where it is short);
+/// `residual_variance`: the fit's residual variance per sample [force^2].  An extended model's added terms (viscous, inertia) fitted this way are those of
+/// the force whatever thresholds its operators take: the restart of an extended fit
+/// (extension_identify_slip.cpp, fit_from_nlr) takes them out before NLR, where the values of the
+/// joint fit may carry a base that absorbed part of them.
+std::vector<double> dictionary_added_coefficients(std::span<const double> x,
+                                                  std::span<const double> force,
+                                                  std::span<const std::vector<double>> added,
+                                                  std::span<const double> lower,
+                                                  double displacement_resolution_hint,
+                                                  const SlipLimits* limits = nullptr,
+                                                  double* residual_variance = nullptr);
+
 /// Column `c` delayed by `lag` samples, the record being extended backwards with its first value
 /// (the system at rest before the record: delta(t < 0) = delta(0), dx(t <= 0) = 0).
 inline Eigen::VectorXd lagged(const Eigen::Ref<const Eigen::VectorXd>& c, Eigen::Index lag) {
