@@ -775,9 +775,11 @@ bool threshold_moves(
 // column-pivoted QR of the free columns takes what the directions kept (eigenvalues above 1e-13 of
 // the largest) can resolve.
 //
-// `added` (optional): signals a_j(t_k) fitted beside the grid's columns with free coefficients,
-// returned in `added_coefficients` (in the force's units per unit of a_j); the dictionary's
-// operators are then those of the force with them taken out (dictionary_added_coefficients).
+// `added` (optional): signals a_j(t_k) fitted beside the grid's columns, their coefficients
+// bounded below by `added_lower` (free where it is short) and returned in `added_coefficients`
+// (in the force's units per unit of a_j); the dictionary's operators are then those of the force
+// with them taken out (dictionary_added_coefficients).  `residual_variance`: the fit's residual
+// variance per sample, in the force's units squared.
 void dictionary_operators(Data& d, std::span<const std::vector<double>> added = {},
                           std::span<const double> added_lower = {},
                           std::vector<double>* added_coefficients = nullptr,
@@ -878,7 +880,8 @@ void dictionary_operators(Data& d, std::span<const std::vector<double>> added = 
     const double rss = std::max(
         0.0, gram(pi, pi) - 2.0 * k.dot(gram.row(pi).head(pi).transpose()) + k.dot(ata * k));
     const double rows_used = static_cast<double>((n + stride - 1) / stride);
-    *residual_variance = rss / std::max(1.0, rows_used - static_cast<double>(p)) * d.scale * d.scale;
+    *residual_variance =
+        rss / std::max(1.0, rows_used - static_cast<double>(p)) * d.scale * d.scale;
   }
   std::vector<double> total(g, 0.0);
   for (std::size_t c = 0; c < p_operators; ++c)
@@ -1394,7 +1397,8 @@ std::vector<double> dictionary_added_coefficients(std::span<const double> x,
   FRICTION_CHECK(x.size() == force.size() && x.size() >= 20,
                  "dictionary_added_coefficients: lengths differ or too few samples");
   for (const auto& a : added)
-    FRICTION_CHECK(a.size() == x.size(), "dictionary_added_coefficients: a signal's length differs");
+    FRICTION_CHECK(a.size() == x.size(),
+                   "dictionary_added_coefficients: a signal's length differs");
   if (limits) check_slip_limits(*limits, x.size());
   Data d;
   d.x = x;

@@ -96,12 +96,12 @@ NlrResult identify_maxwell_slip_under_limits(std::span<const double> time,
 
 /// The coefficients of signals a_j(t_k) fitted beside the operators of NLR's dictionary (nlr.cpp,
 /// dictionary_operators: NNLS over a dense grid of thresholds and initial states, the a_j's
-/// coefficients free), in the force's units per unit of a_j; empty when the record gives no
-/// dictionary.  `lower`: a lower bound per coefficient (none where it is short);
-/// `residual_variance`: the fit's residual variance per sample [force^2].  An extended model's added terms (viscous, inertia) fitted this way are those of
-/// the force whatever thresholds its operators take: the restart of an extended fit
-/// (extension_identify_slip.cpp, fit_from_nlr) takes them out before NLR, where the values of the
-/// joint fit may carry a base that absorbed part of them.
+/// coefficients bounded below by `lower`, free where it is short), in the force's units per unit
+/// of a_j; empty when the record gives no dictionary.  `residual_variance`: the fit's residual
+/// variance per sample [force^2].  A viscous term fitted this way is that of the force whatever
+/// thresholds the operators take: the restart of an extended fit (extension_identify_slip.cpp,
+/// without_dictionary_viscous) takes it out before NLR, where the joint fit's coefficient may
+/// carry a base that absorbed part of it.
 std::vector<double> dictionary_added_coefficients(std::span<const double> x,
                                                   std::span<const double> force,
                                                   std::span<const std::vector<double>> added,
