@@ -1,5 +1,6 @@
 // When a validation record moves faster than the estimation record ever did, and the model has
-// speed-dependent terms, `identify`, `compare` and `validate` say so (speed_coverage.hpp).
+// speed-dependent terms, `identify`, `compare`, `validate` and `diagnose` say so
+// (speed_coverage.hpp).
 //
 // The records are sines sampled exactly, x = A sin(2 pi f t), so the share of the validation
 // samples above the estimation record's largest speed is known in closed form: for amplitudes A
@@ -147,6 +148,21 @@ TEST(SpeedCoverage, CompareSaysItForLgOnly) {
   for (const Json& row : doc["methods"]) {
     const std::string method = row["method"].get<std::string>();
     EXPECT_EQ(warns_faster(row["warnings"]), method == "LG") << method << row["warnings"].dump();
+  }
+}
+
+// `diagnose` on a LuGre baseline, whose Stribeck curve and viscous term are fitted on the
+// estimation record's speeds: the warning on the fast validation record, not on the slow one.
+TEST(SpeedCoverage, DiagnoseSaysItForItsFinalModel) {
+  TempDir dir;
+  const std::string slow = write_csv(dir, "slow.csv", sine_record(1e-3, 0.0, 8));
+  const std::string slow_again = write_csv(dir, "slow-again.csv", sine_record(1e-3, 0.7, 8));
+  const std::string fast = write_csv(dir, "fast.csv", sine_record(3e-3, 0.7, 8));
+  for (const auto& [validation, expected] : {std::pair{fast, true}, std::pair{slow_again, false}}) {
+    auto r = run_cli("diagnose --baseline lugre --no-global --data " + slow + " --validate " +
+                     validation + " --format json");
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(warns_faster(Json::parse(r.out)["warnings"]), expected) << validation << r.out;
   }
 }
 

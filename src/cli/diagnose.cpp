@@ -9,6 +9,7 @@
 #include "commands.hpp"
 #include "friction/atomic_file.hpp"
 #include "friction/diagnose.hpp"
+#include "friction/speed_coverage.hpp"
 #include "progress.hpp"
 #include "report_option.hpp"
 
@@ -151,6 +152,12 @@ int run_diagnose(const DiagnoseCliOptions& o) {
   Json doc = new_document("diagnose");
   add_warnings(doc, warnings);
   add_warnings(doc, d.warnings);
+  // The final model's speed-dependent terms (a LuGre baseline's curve, the pieces named) on a
+  // validation record faster than the estimation record (speed_coverage.hpp).
+  if (d.final_model)
+    if (auto w = speed_extrapolation_warning(speed_coverage(largest_speed(est), val),
+                                             speed_dependent_terms(d.final_model->to_json())))
+      add_warnings(doc, {*w});
   Json body = d.to_json();
   for (auto it = body.begin(); it != body.end(); ++it) doc[it.key()] = it.value();
   doc["data"] = {{"estimation", {{"file", o.data}, {"samples", est.size()}}},
