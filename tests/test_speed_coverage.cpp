@@ -10,11 +10,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
-#include <cstdio>
+#include <filesystem>
 #include <numbers>
 #include <string>
 
+#include "friction/csv.hpp"
 #include "friction/speed_coverage.hpp"
 #include "support/cli_runner.hpp"
 
@@ -46,15 +48,8 @@ friction::Record sine_record(double a, double phase, int periods) {
 }
 
 std::string write_csv(const TempDir& dir, const std::string& name, const friction::Record& r) {
-  std::string text = "time,displacement,force\n";
-  char line[128];
-  for (std::size_t i = 0; i < r.size(); ++i) {
-    std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g\n", r.time[i], r.displacement[i],
-                  r.force[i]);
-    text += line;
-  }
   const std::string path = dir.file(name);
-  friction::testing::write_text(path, text);
+  friction::write_record_csv(std::filesystem::path(path), r);
   return path;
 }
 
