@@ -30,6 +30,7 @@ struct Data {
   std::span<const double> force;
   Eigen::VectorXd y;  // force / scale
   double scale = 1;   // rms of the force
+  double sss = 0;     // sum of the squared force
   // RSS/SSS [%] below which a fit is at the noise floor: N sigma^2 plus three standard errors of
   // that chi-square (sqrt(2N) sigma^2), sigma from estimate_white_noise_sigma.  0: unknown.
   double floor_percent = 0;
@@ -43,6 +44,22 @@ struct Data {
   std::vector<std::pair<double, double>> dictionary;
   double dictionary_ratio = 1;  // of neighbouring grid thresholds
 };
+
+// A fit's data: the motion and its turns, the force, its sum of squares and the force scaled by
+// its rms (y left empty when the force is identically zero: the callers say what that means).
+Data fit_data(std::span<const double> x, std::span<const double> force,
+              const detail::SlipLimits* limits) {
+  Data d;
+  d.x = x;
+  d.turns = detail::turns_of(x);
+  d.force = force;
+  d.limits = limits;
+  const Eigen::Map<const Eigen::VectorXd> f(force.data(), static_cast<Eigen::Index>(force.size()));
+  d.sss = f.squaredNorm();
+  d.scale = std::sqrt(d.sss / static_cast<double>(force.size()));
+  if (d.sss > 0.0) d.y = f / d.scale;
+  return d;
+}
 
 struct VpValue {
   Eigen::VectorXd r;
@@ -1110,14 +1127,8 @@ void nlr_projected_residual(std::span<const double> x, std::span<const double> f
   FRICTION_CHECK(s.size() == rho.size() && !s.empty(), "nlr: s and rho sizes differ");
   FRICTION_CHECK(lower > 0.0 && upper > lower,
                  "nlr: threshold bounds must satisfy 0 < lower < upper");
-  Data d;
-  d.x = x;
-  d.turns = detail::turns_of(x);
-  d.force = force;
-  const Eigen::Map<const Eigen::VectorXd> f(force.data(), static_cast<Eigen::Index>(force.size()));
-  d.scale = std::sqrt(f.squaredNorm() / static_cast<double>(f.size()));
+  Data d = fit_data(x, force, nullptr);
   FRICTION_CHECK(d.scale > 0.0, "nlr: the force is identically zero");
-  d.y = f / d.scale;
   d.sb = detail::StickBreaking{lower, upper};
   Workspace ws;
   const auto& v = vp_evaluate(d, s, rho, jacobian ? Jacobian::full : Jacobian::none, ws);
@@ -1146,17 +1157,10 @@ NlrResult identify(std::span<const double> time, std::span<const double> x,
     FRICTION_CHECK(std::isfinite(x[k]) && std::isfinite(force[k]), "identify_maxwell_slip: sample ",
                    k, " is not finite");
 
-  Data d;
-  d.x = x;
-  d.turns = detail::turns_of(x);
-  d.force = force;
-  d.limits = limits;
-  const Eigen::Map<const Eigen::VectorXd> f(force.data(), static_cast<Eigen::Index>(force.size()));
-  const double sss = f.squaredNorm();
+  Data d = fit_data(x, force, limits);
+  const double sss = d.sss;
   FRICTION_CHECK(sss > 0.0, "identify_maxwell_slip: the force is identically zero");
   const double n = static_cast<double>(x.size());
-  d.scale = std::sqrt(sss / n);
-  d.y = f / d.scale;
 
   NlrResult result;
   IdentificationReport& rep = result.report;
@@ -1400,18 +1404,11 @@ std::vector<double> dictionary_added_coefficients(std::span<const double> x,
     FRICTION_CHECK(a.size() == x.size(),
                    "dictionary_added_coefficients: a signal's length differs");
   if (limits) check_slip_limits(*limits, x.size());
-  Data d;
-  d.x = x;
-  d.turns = turns_of(x);
-  d.force = force;
-  d.limits = limits;
-  const Eigen::Map<const Eigen::VectorXd> f(force.data(), static_cast<Eigen::Index>(force.size()));
-  d.scale = std::sqrt(f.squaredNorm() / static_cast<double>(f.size()));
+  Data d = fit_data(x, force, limits);
   const double q = displacement_resolution_hint > 0 ? displacement_resolution_hint
                                                     : displacement_resolution(x);
   const double travel = largest_travel(x);
-  if (!(d.scale > 0.0) || !(travel > 2.0 * q)) return {};
-  d.y = f / d.scale;
+  if (!(d.sss > 0.0) || !(travel > 2.0 * q)) return {};
   d.sb = StickBreaking{q, travel};
   std::vector<double> beta;
   dictionary_operators(d, added, lower, &beta, residual_variance);
