@@ -203,52 +203,84 @@ struct FilterLoss {
   double velocity = 0, acceleration = 0;
 };
 
-FilterLoss minimise_errors(const Spectrum& p, const std::vector<double>& noise, double ts,
-                           std::size_t n, DerivativeWindows& w, bool islands_are_signal = false) {
-  const std::size_t length = p.length;
+// One noise model of the spectrum and what minimise_errors chooses for it: `noise` per bin,
+// whether islands of signal above the band count as signal, the windows it sets and their loss.
+struct NoiseModel {
+  const std::vector<double>* noise;
+  bool islands_are_signal;
+  DerivativeWindows* windows;
+  FilterLoss* loss;
+};
+
+// Every noise model is served by one pass over (bin, half width): the filters' responses there do
+// not depend on the noise, and they are most of the work (a record's second and third noise
+// models, known together, cost one pass).
+void minimise_errors(const Spectrum& p, std::span<const NoiseModel> models, double ts,
+                     std::size_t n) {
+  const std::size_t length = p.length, nmodels = models.size();
   const double lf = static_cast<double>(length);
   const std::size_t m_max = std::max<std::size_t>(1, std::min(length / 4, (n - 1) / 2));
-  // [degree / 2 - 1][m] for degrees 2 and 4: sum Re(H D*) S and sum |H|^2 P.
-  std::vector<double> cross_v[2], cross_a[2], pass_v[2], pass_a[2], cross_x[2], pass_x[2];
-  for (auto* e : {cross_v, cross_a, pass_v, pass_a, cross_x, pass_x})
-    for (int d = 0; d < 2; ++d) e[d].assign(m_max + 1, 0.0);
-  double ideal_v = 0, ideal_a = 0;  // sum |D|^2 S
+  // Per model, [degree / 2 - 1][m] for degrees 2 and 4: sum Re(H D*) S and sum |H|^2 P.
+  struct Sums {
+    std::vector<double> cross_v[2], cross_a[2], pass_v[2], pass_a[2], cross_x[2], pass_x[2];
+    double ideal_v = 0, ideal_a = 0;  // sum |D|^2 S
+    std::vector<double> n_avg;
+    std::size_t band_end = 0;
+  };
+  std::vector<Sums> sums(nmodels);
+  for (Sums& e : sums)
+    for (auto* a : {e.cross_v, e.cross_a, e.pass_v, e.pass_a, e.cross_x, e.pass_x})
+      for (int d = 0; d < 2; ++d) a[d].assign(m_max + 1, 0.0);
   // Local averages over +-kDecisionBins bins decide where the signal is, and the bin keeps its
   // own shape through the local signal fraction (a quantiser's lines sit a few bins apart in the
   // record and in its model: compared bin by bin, a line would be read as signal).
   const std::size_t half = length / 2;
-  std::vector<double> p_avg(half + 1, 0.0), n_avg(half + 1, 0.0);
+  std::vector<double> p_avg(half + 1, 0.0);
   for (std::size_t j = 1; j <= half; ++j) {
     const std::size_t lo = j > kDecisionBins ? j - kDecisionBins : 1;
     const std::size_t hi = std::min(half, j + kDecisionBins);
-    for (std::size_t i = lo; i <= hi; ++i) {
-      p_avg[j] += p.p[i];
-      n_avg[j] += noise[i];
-    }
+    for (std::size_t i = lo; i <= hi; ++i) p_avg[j] += p.p[i];
   }
   // The motion of a machine axis is low-pass: its band is the run of signal bins that starts at
   // the lowest frequency.  Islands above it are an encoder's lines (a stroke at constant speed
   // quantises into a sawtooth whose aliased frequency moves by a tenth of the band when the speed
   // changes by 1 %, so no model of the quantiser places them; one such island at 0.9 pi made the
   // acceleration window 2 where 7 was best).
-  std::size_t band_end = 0;
-  while (band_end < half && p_avg[band_end + 1] > kSignalOverNoise * n_avg[band_end + 1])
-    ++band_end;
+  for (std::size_t k = 0; k < nmodels; ++k) {
+    Sums& e = sums[k];
+    const std::vector<double>& noise = *models[k].noise;
+    e.n_avg.assign(half + 1, 0.0);
+    for (std::size_t j = 1; j <= half; ++j) {
+      const std::size_t lo = j > kDecisionBins ? j - kDecisionBins : 1;
+      const std::size_t hi = std::min(half, j + kDecisionBins);
+      for (std::size_t i = lo; i <= hi; ++i) e.n_avg[j] += noise[i];
+    }
+    while (e.band_end < half && p_avg[e.band_end + 1] > kSignalOverNoise * e.n_avg[e.band_end + 1])
+      ++e.band_end;
+  }
   // The filters' rows of the inverse normal equations depend on m only (powers of i/m).
   const std::vector<FilterRows> rows = filter_rows(m_max);
-  for (std::size_t j = 1; j <= length / 2; ++j) {
+  // The responses of one bin, [degree / 2 - 1][m]: H_v = i hv, H_a = ha, H_x = hx.
+  std::vector<double> hv[2], ha[2], hx[2];
+  for (int d = 0; d < 2; ++d) hv[d].assign(m_max + 1, 0.0), ha[d] = hv[d], hx[d] = hv[d];
+  std::vector<double> signal(nmodels);
+  for (std::size_t j = 1; j <= half; ++j) {
     const double total = p.p[j];
-    const bool holds_signal =
-        j <= band_end || (islands_are_signal && p_avg[j] > kSignalOverNoise * n_avg[j]);
-    const double signal = holds_signal ? total * (1 - n_avg[j] / p_avg[j]) : 0.0;
-    const double wj = p.omega(j), weight = (j == length / 2 ? 1.0 : 2.0) / lf;
+    const double wj = p.omega(j), weight = (j == half ? 1.0 : 2.0) / lf;
     const double d_v = wj / ts, d_a = -wj * wj / (ts * ts);
-    ideal_v += weight * d_v * d_v * signal;
-    ideal_a += weight * d_a * d_a * signal;
-    // Unscaled sums over i = 1..m of i^q cos(w i) (q = 0, 2, 4) and i^q sin(w i) (q = 1, 3).
-    double c0 = 0, c2 = 0, c4 = 0, s1 = 0, s3 = 0;
+    // Unscaled sums over i = 1..m of i^q cos(w i) (q = 0, 2, 4) and i^q sin(w i) (q = 1, 3); the
+    // cosines and sines by rotation through w, taken afresh every 32 steps (a rounding of a few
+    // 1e-16 instead of a libm call per term, which was a third of the rule's time).
+    const double cw = std::cos(wj), sw = std::sin(wj);
+    double c0 = 0, c2 = 0, c4 = 0, s1 = 0, s3 = 0, cs = 1, sn = 0;
     for (std::size_t m = 1; m <= m_max; ++m) {
-      const double i = static_cast<double>(m), cs = std::cos(wj * i), sn = std::sin(wj * i);
+      const double i = static_cast<double>(m);
+      if (m % 32 == 1) {
+        cs = std::cos(wj * i), sn = std::sin(wj * i);
+      } else {
+        const double c_next = cs * cw - sn * sw;
+        sn = sn * cw + cs * sw, cs = c_next;
+      }
       const double i2 = i * i;
       c0 += cs, c2 += i2 * cs, c4 += i2 * i2 * cs, s1 += i * sn, s3 += i2 * i * sn;
       // Scaled to powers of i/m, over i = -m..m.
@@ -256,50 +288,70 @@ FilterLoss minimise_errors(const Spectrum& p, const std::vector<double>& noise, 
       const double sin_sums[2] = {2 * s1 / i, 2 * s3 / (i2 * i)};
       const FilterRows& r = rows[m];
       for (int d = 0; d < 2; ++d) {
-        if (d == 1 && m < 2) continue;  // a quartic needs five samples
-        double hv = 0, ha = 0, hx = 0;  // H_v = i hv, H_a = ha, H_x = hx
-        for (int q = 0; q <= d; ++q) hv += r.odd[d][q] * sin_sums[q];
-        for (int q = 0; q <= d + 1; ++q) ha += r.even[d][q] * cos_sums[q];
-        for (int q = 0; q <= d + 1; ++q) hx += r.value[d][q] * cos_sums[q];
-        hv /= ts * i;
-        ha *= 2 / (ts * ts * i2);
-        cross_v[d][m] += weight * hv * d_v * signal;
-        cross_a[d][m] += weight * ha * d_a * signal;
-        pass_v[d][m] += weight * hv * hv * total;
-        pass_a[d][m] += weight * ha * ha * total;
-        cross_x[d][m] += weight * hx * signal;
-        pass_x[d][m] += weight * hx * hx * total;
+        double v = 0, a = 0, x = 0;
+        for (int q = 0; q <= d; ++q) v += r.odd[d][q] * sin_sums[q];
+        for (int q = 0; q <= d + 1; ++q) a += r.even[d][q] * cos_sums[q];
+        for (int q = 0; q <= d + 1; ++q) x += r.value[d][q] * cos_sums[q];
+        hv[d][m] = v / (ts * i);
+        ha[d][m] = a * 2 / (ts * ts * i2);
+        hx[d][m] = x;
       }
+    }
+    for (std::size_t k = 0; k < nmodels; ++k) {
+      Sums& e = sums[k];
+      const bool holds_signal =
+          j <= e.band_end ||
+          (models[k].islands_are_signal && p_avg[j] > kSignalOverNoise * e.n_avg[j]);
+      signal[k] = holds_signal ? total * (1 - e.n_avg[j] / p_avg[j]) : 0.0;
+      e.ideal_v += weight * d_v * d_v * signal[k];
+      e.ideal_a += weight * d_a * d_a * signal[k];
+      const double sv = weight * d_v * signal[k], sa = weight * d_a * signal[k],
+                   sx = weight * signal[k], wt = weight * total;
+      for (int d = 0; d < 2; ++d)
+        for (std::size_t m = d == 1 ? 2 : 1; m <= m_max; ++m) {  // a quartic needs five samples
+          const double v = hv[d][m], a = ha[d][m], x = hx[d][m];
+          e.cross_v[d][m] += v * sv;
+          e.cross_a[d][m] += a * sa;
+          e.pass_v[d][m] += v * v * wt;
+          e.pass_a[d][m] += a * a * wt;
+          e.cross_x[d][m] += x * sx;
+          e.pass_x[d][m] += x * x * wt;
+        }
     }
   }
-  double best_v = INFINITY, best_a = INFINITY, best_x = INFINITY;
-  for (int d = 0; d < 2; ++d)
-    for (std::size_t m = d == 1 ? 2 : 1; m <= m_max; ++m) {
-      // The mean square errors less sum |D|^2 S.
-      const double e_v = pass_v[d][m] - 2 * cross_v[d][m];
-      const double e_a = pass_a[d][m] - 2 * cross_a[d][m];
-      if (e_v < best_v) {
-        best_v = e_v;
-        w.velocity_half_width = m;
-        w.velocity_degree = 2 + 2 * static_cast<std::size_t>(d);
+  for (std::size_t k = 0; k < nmodels; ++k) {
+    const Sums& e = sums[k];
+    DerivativeWindows& w = *models[k].windows;
+    double best_v = INFINITY, best_a = INFINITY, best_x = INFINITY;
+    for (int d = 0; d < 2; ++d)
+      for (std::size_t m = d == 1 ? 2 : 1; m <= m_max; ++m) {
+        // The mean square errors less sum |D|^2 S.
+        const double e_v = e.pass_v[d][m] - 2 * e.cross_v[d][m];
+        const double e_a = e.pass_a[d][m] - 2 * e.cross_a[d][m];
+        if (e_v < best_v) {
+          best_v = e_v;
+          w.velocity_half_width = m;
+          w.velocity_degree = 2 + 2 * static_cast<std::size_t>(d);
+        }
+        if (e_a < best_a) {
+          best_a = e_a;
+          w.acceleration_half_width = m;
+          w.acceleration_degree = 2 + 2 * static_cast<std::size_t>(d);
+        }
+        const double e_x = e.pass_x[d][m] - 2 * e.cross_x[d][m];
+        if (e_x < best_x) {
+          best_x = e_x;
+          w.displacement_half_width = m;
+          w.displacement_degree = 2 + 2 * static_cast<std::size_t>(d);
+        }
       }
-      if (e_a < best_a) {
-        best_a = e_a;
-        w.acceleration_half_width = m;
-        w.acceleration_degree = 2 + 2 * static_cast<std::size_t>(d);
-      }
-      const double e_x = pass_x[d][m] - 2 * cross_x[d][m];
-      if (e_x < best_x) {
-        best_x = e_x;
-        w.displacement_half_width = m;
-        w.displacement_degree = 2 + 2 * static_cast<std::size_t>(d);
-      }
-    }
-  w.velocity_rms_error = std::sqrt(std::max(best_v + ideal_v, 0.0));
-  w.acceleration_rms_error = std::sqrt(std::max(best_a + ideal_a, 0.0));
-  const std::size_t dv = w.velocity_degree / 2 - 1, da = w.acceleration_degree / 2 - 1;
-  const std::size_t mv = w.velocity_half_width, ma = w.acceleration_half_width;
-  return {pass_v[dv][mv] - cross_v[dv][mv], pass_a[da][ma] - cross_a[da][ma]};
+    w.velocity_rms_error = std::sqrt(std::max(best_v + e.ideal_v, 0.0));
+    w.acceleration_rms_error = std::sqrt(std::max(best_a + e.ideal_a, 0.0));
+    const std::size_t dv = w.velocity_degree / 2 - 1, da = w.acceleration_degree / 2 - 1;
+    const std::size_t mv = w.velocity_half_width, ma = w.acceleration_half_width;
+    if (models[k].loss)
+      *models[k].loss = {e.pass_v[dv][mv] - e.cross_v[dv][mv], e.pass_a[da][ma] - e.cross_a[da][ma]};
+  }
 }
 
 // The rule, without the memo below.
@@ -321,7 +373,8 @@ DerivativeWindows windows_by_the_rule(std::span<const double> time, std::span<co
   // First pass: white noise at the top band's level.
   const double white = top_band_level(p);
   std::vector<double> noise(p.p.size(), white);
-  FilterLoss lost = minimise_errors(p, noise, ts, n, w);
+  FilterLoss lost;
+  minimise_errors(p, std::array{NoiseModel{&noise, false, &w, &lost}}, ts, n);
   w.displacement_noise = std::sqrt(white);
   // The displacement the models see: as measured unless an encoder's staircase is removed below
   // (the top band of an exact record holds the broadband power of its reversals' corners, which
@@ -361,8 +414,6 @@ DerivativeWindows windows_by_the_rule(std::span<const double> time, std::span<co
     const Spectrum e = displacement_spectrum(error, length);
     const double excess = std::max(white - top_band_level(e), 0.0);
     for (std::size_t j = 0; j < noise.size(); ++j) noise[j] = e.p[j] + excess;
-    lost = minimise_errors(p, noise, ts, n, w);
-    w.displacement_noise = std::sqrt(variance + excess);
     // The value filter against the quantisation error alone: what it is for is the staircase,
     // and an excess in the top band may be the record's own corners (above).  For the same
     // reason power above the band that the quantiser's model does not explain counts as signal
@@ -370,7 +421,11 @@ DerivativeWindows windows_by_the_rule(std::span<const double> time, std::span<co
     // filter keeps a little more of the staircase than it could have removed).  On the
     // tribometer record (200 Hz, 0.1 um encoder) the window is then 7 samples where it was 9.
     DerivativeWindows staircase = w;
-    minimise_errors(p, e.p, ts, n, staircase, /*islands_are_signal=*/true);
+    minimise_errors(p,
+                    std::array{NoiseModel{&noise, false, &w, &lost},
+                               NoiseModel{&e.p, /*islands_are_signal=*/true, &staircase, nullptr}},
+                    ts, n);
+    w.displacement_noise = std::sqrt(variance + excess);
     w.displacement_half_width = staircase.displacement_half_width;
     w.displacement_degree = staircase.displacement_degree;
   }
