@@ -125,11 +125,21 @@ std::vector<double> regime_statistics(const Signals& s, ResidualEvidence& ev) {
 }
 
 // Sliding samples, quantile bins of |v| per direction: mean residual per bin.
+// An encoder's record has few distinct speeds (its velocity estimates are sums of whole steps), so
+// a bin's edge usually falls inside a group of equal speeds.  Such a group is split in time order:
+// split by residual (a sort of (|v|, e) pairs) it gave the lower bin the group's lowest residuals,
+// and equal speeds that rounding left an ulp apart were split by the rounding, so that a change in
+// the last digit of the velocity's regression factor moved bin means by 3 %.  Speeds are compared
+// on a grid of 1e-12 of the largest.
 void velocity_bins(const Signals& s, ResidualEvidence& ev) {
+  double fastest = 0;
+  for (std::size_t k = 0; k < s.e.size(); ++k)
+    if (s.sliding[k] > 0) fastest = std::max(fastest, std::abs(s.v[k]));
+  const double grid = fastest > 0 ? 1e-12 * fastest : 1.0;
   for (int d : {1, -1}) {
-    std::vector<std::pair<double, double>> pts;
+    std::vector<std::pair<double, std::size_t>> pts;  // (speed on the grid, sample)
     for (std::size_t k = 0; k < s.e.size(); ++k)
-      if (s.sliding[k] > 0 && s.dir[k] == d) pts.emplace_back(std::abs(s.v[k]), s.e[k]);
+      if (s.sliding[k] > 0 && s.dir[k] == d) pts.emplace_back(std::round(std::abs(s.v[k]) / grid), k);
     if (pts.size() < 16) continue;
     std::sort(pts.begin(), pts.end());
     const std::size_t bins = 6;
@@ -137,9 +147,9 @@ void velocity_bins(const Signals& s, ResidualEvidence& ev) {
       const std::size_t lo = b * pts.size() / bins, hi = (b + 1) * pts.size() / bins;
       ResidualEvidence::Bin bin;
       bin.direction = d;
-      bin.speed_low = pts[lo].first;
-      bin.speed_high = pts[hi - 1].first;
-      for (std::size_t k = lo; k < hi; ++k) bin.mean_residual += pts[k].second;
+      bin.speed_low = std::abs(s.v[pts[lo].second]);
+      bin.speed_high = std::abs(s.v[pts[hi - 1].second]);
+      for (std::size_t k = lo; k < hi; ++k) bin.mean_residual += s.e[pts[k].second];
       bin.samples = hi - lo;
       bin.mean_residual /= static_cast<double>(bin.samples);
       ev.velocity_bins.push_back(bin);
