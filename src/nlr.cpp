@@ -1049,7 +1049,7 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
   // the resolution with a tiny stiffness, seed 9 of studies.md 1) while the others share the
   // work of one more.  The operator that carries the least of the sliding force (k_i Delta_i) is
   // moved into the largest log-gap of the others' thresholds (or beyond the largest) and the fit
-  // re-polished; kept when it is better.  Skipped at the noise floor, and during the order
+  // re-polished from there when that start is already better; kept when the polish is better.  Skipped at the noise floor, and during the order
   // selection, where the warm start from M - 1 (one threshold inserted in the largest gap) is
   // the same move.
   auto relocate_weakest = [&]() {
@@ -1073,7 +1073,18 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
       if (others[g + 1] / others[g] > widest) widest = others[g + 1] / others[g], gap = g;
     moved.push_back(std::sqrt(others[gap] * others[gap + 1]));
     moved = clamp_sorted(moved, sc.q, sc.travel);
-    const Fit f = local_search(d, d.sb.coordinates(moved), start_rho(d, moved), o, best.percent);
+    // Polished only from a start already better than the fit (stiffnesses re-solved, initial
+    // state estimated): since the dictionary starts, the relocated start was 1.007-52 times the
+    // fit's cost wherever it ran (the NLR round-trip study's 5 relocations, the strokes bench
+    // record, data/ at M = 6), and none of the 7 polishes, 27 iterations on the strokes record
+    // (a third of its fit), ended below the fit.
+    const std::vector<double> rho = start_rho(d, moved);
+    const double start = [&] {
+      Workspace ws;
+      return percent_of(vp_evaluate(d, d.sb.coordinates(moved), rho, Jacobian::none, ws).r);
+    }();
+    if (!(start < best.percent)) return;
+    const Fit f = local_search(d, d.sb.coordinates(moved), rho, o, best.percent);
     record("relocated", moved, f);
   };
   relocate_weakest();
