@@ -358,13 +358,14 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
     for (int round = 0; round < rounds; ++round) {
       const double round_start = best_cost;
       {
-        // Column i holds operator i's contribution over its own prefix; `total` adds `fixed`.
-        contribution.setZero();
+        // Column i holds operator i's contribution over its own prefix (the rest of the column is
+        // never read); `total` adds `fixed`.
+        total = fixed;
         for (Eigen::Index i = 0; i < mi; ++i) {
           const std::size_t iu = static_cast<std::size_t>(i);
           single[iu].contribution(best[iu], contribution.col(i).head(own[iu]), false);
+          total.head(own[iu]) += contribution.col(i).head(own[iu]);
         }
-        total = contribution.rowwise().sum() + fixed;
         for (int sweep = 0; sweep < sweeps; ++sweep) {
           bool moved = false;
           for (Eigen::Index i = 0; i < mi; ++i) {
@@ -393,7 +394,9 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
 
       for (int it = 0; it < gn_iterations; ++it) {
         predict(best, force);
-        jacobian.setZero(y.size(), mi);
+        // Column i beyond operator i's prefix is zero; it is written only where the whole
+        // matrix is used (the QR below).
+        jacobian.resize(y.size(), mi);
         for (Eigen::Index i = 0; i < mi; ++i) {
           const std::size_t iu = static_cast<std::size_t>(i);
           single[iu].sensitivity(best[iu], jacobian.col(i).head(own[iu]));
@@ -424,8 +427,11 @@ std::vector<double> estimate_initial_deflections(std::span<const double> x,
         }
         Eigen::VectorXd step;
         double step_rss = 0.0;
-        if (!detail::box_least_squares_gram(gram, jtr, r.squaredNorm(), lo, hi, step, step_rss))
+        if (!detail::box_least_squares_gram(gram, jtr, r.squaredNorm(), lo, hi, step, step_rss)) {
+          for (Eigen::Index i = 0; i < mi; ++i)
+            jacobian.col(i).tail(y.size() - own[static_cast<std::size_t>(i)]).setZero();
           step = detail::box_least_squares(jacobian, r, lo, hi);
+        }
         if (step.norm() <= 1e-14 * dmax) break;
         bool accepted = false;
         for (double alpha = 1.0; alpha > 1e-4; alpha *= 0.25) {
