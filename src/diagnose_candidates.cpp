@@ -318,6 +318,7 @@ State accepted(const Context& c, const State& s, const Tried& t) {
   o.global_stage = false;
   o.grow_operators = false;
   o.base_under_level = kDiagnoseBaseUnderLevel;
+  o.threads = c.options.threads;  // the forward pass waits for the restart
   bool restarted = false;
   const ExtendedSlipFit g = extension_detail::restart_base(c.est, t.result, o, restarted);
   if (restarted) {
@@ -544,6 +545,7 @@ void polish_final(const Context& c, Chain& chain) {
   o.global_stage = c.options.method.global_stage;
   o.grow_operators = true;
   o.base_under_level = kDiagnoseBaseUnderLevel;
+  o.threads = c.options.threads;  // nothing else runs beside the final polish
   bool restarted = false;
   const ExtendedSlipFit g = extension_detail::restart_base(
       c.est, ExtendedSlipFit{last.base, last.rho, last.ext, last.rss, true, last.at_bound}, o,

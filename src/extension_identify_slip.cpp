@@ -14,6 +14,7 @@
 #include "friction/extension_fit.hpp"
 #include "friction/identification.hpp"
 #include "friction/nlr.hpp"
+#include "parallel_for.hpp"
 #include "slip_regression.hpp"
 
 namespace friction::extension_detail {
@@ -301,29 +302,20 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
                             cur.ext.delay ? cur.ext.delay->delay : 0.0, x,
                             cur.ext.delay ? delay_edge_length(record_derivative_windows(r)) : 0);
   const PiecesAlongRun run = pieces_along_run(r, cur);
-  std::optional<ExtendedSlipFit> best;
-  auto consider = [&](const NlrResult& nr, std::vector<double> rho, bool level) {
-    ExtendedSlipFit g = fit_extended_slip(r, nr.parameters, rho, cur.ext, false, o.max_iterations);
-    if (g.ok && (!best || fit_bic(r, g) < fit_bic(r, *best))) {
-      best = std::move(g);
-      under_level = level;
-    }
+  // The forces NLR runs on, in the order their fits are compared: divided by the level (and that
+  // force with the dictionary's viscous take-out), then under the level (likewise).
+  struct Branch {
+    std::vector<double> force;
+    bool under;
   };
+  std::vector<Branch> branches;
+  detail::SlipLimits limits;
   if (!only || !*only) {
     try {
-      const std::vector<double> target = divided_force(r, cur, run);
-      const auto divided_nlr = [&](const std::vector<double>& force) {
-        try {
-          const NlrResult nr = identify_maxwell_slip(r.time, x, force, n);
-          consider(nr, state_from(nr.report.initial_deflections, nr.parameters.threshold), false);
-        } catch (const Error&) {
-          // No fit from this force; the other may give one.
-        }
-      };
-      divided_nlr(target);
-      if (auto again = without_dictionary_viscous(x, target, run, cur, n.displacement_resolution,
-                                                  nullptr, true))
-        divided_nlr(*again);
+      branches.push_back({divided_force(r, cur, run), false});
+      if (auto again = without_dictionary_viscous(x, branches.back().force, run, cur,
+                                                  n.displacement_resolution, nullptr, true))
+        branches.push_back({std::move(*again), false});
     } catch (const Error&) {
       // No fit from this base.
     }
@@ -338,31 +330,53 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
       (cur.ext.stribeck || cur.ext.position_dependence || cur.ext.drift || cur.ext.normal_load);
   if (moving_level && (!only || *only)) {
     try {
-      detail::SlipLimits limits;
-      const std::vector<double> target = force_under_limits(r, cur, run, limits);
-      NlrOptions under = n;
-      under.refine_initial_state = false;  // its search knows only the nominal box
-      const auto nlr_under = [&](const std::vector<double>& force) {
-        try {
-          const NlrResult nr =
-              detail::identify_maxwell_slip_under_limits(r.time, x, force, under, limits);
-          // NLR's initial deflections are relative to the nominal box [-Delta, Delta]; the
-          // model's state is relative to its own, centred on a Delta (deflections_from_relative).
-          std::vector<double> rho =
-              state_from(nr.report.initial_deflections, nr.parameters.threshold);
-          const double a = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
-          for (double& v : rho) v = std::clamp(v - a, -1.0, 1.0);
-          consider(nr, std::move(rho), true);
-        } catch (const Error&) {
-          // No fit from this force; the other may give one.
-        }
-      };
-      nlr_under(target);
-      if (auto again = without_dictionary_viscous(x, target, run, cur, n.displacement_resolution,
-                                                  &limits, false))
-        nlr_under(*again);
+      branches.push_back({force_under_limits(r, cur, run, limits), true});
+      if (auto again = without_dictionary_viscous(x, branches.back().force, run, cur,
+                                                  n.displacement_resolution, &limits, false))
+        branches.push_back({std::move(*again), true});
     } catch (const Error&) {
       // No fit from this base.
+    }
+  }
+  // Each branch: NLR, then the joint fit from its base; an Error leaves its slot empty (no fit
+  // from that force; another may give one).  Several branches share the threads; one alone gives
+  // them to NLR's order selection.
+  struct Outcome {
+    std::optional<ExtendedSlipFit> fit;
+  };
+  std::vector<Outcome> outcomes(branches.size());
+  NlrOptions under = n;
+  under.refine_initial_state = false;  // its search knows only the nominal box
+  n.threads = under.threads = branches.size() > 1 ? 1 : o.threads;
+  detail::parallel_for(branches.size(), o.threads, [&](std::size_t i) {
+    const Branch& b = branches[i];
+    try {
+      if (!b.under) {
+        const NlrResult nr = identify_maxwell_slip(r.time, x, b.force, n);
+        outcomes[i].fit = fit_extended_slip(
+            r, nr.parameters, state_from(nr.report.initial_deflections, nr.parameters.threshold),
+            cur.ext, false, o.max_iterations);
+      } else {
+        const NlrResult nr =
+            detail::identify_maxwell_slip_under_limits(r.time, x, b.force, under, limits);
+        // NLR's initial deflections are relative to the nominal box [-Delta, Delta]; the
+        // model's state is relative to its own, centred on a Delta (deflections_from_relative).
+        std::vector<double> rho =
+            state_from(nr.report.initial_deflections, nr.parameters.threshold);
+        const double a = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
+        for (double& v : rho) v = std::clamp(v - a, -1.0, 1.0);
+        outcomes[i].fit = fit_extended_slip(r, nr.parameters, rho, cur.ext, false, o.max_iterations);
+      }
+    } catch (const Error&) {
+      outcomes[i].fit.reset();
+    }
+  });
+  std::optional<ExtendedSlipFit> best;
+  for (std::size_t i = 0; i < branches.size(); ++i) {
+    std::optional<ExtendedSlipFit>& g = outcomes[i].fit;
+    if (g && g->ok && (!best || fit_bic(r, *g) < fit_bic(r, *best))) {
+      best = std::move(*g);
+      under_level = branches[i].under;
     }
   }
   return best;

@@ -49,6 +49,7 @@ ExtensionFitOptions fit_options(const MethodOptions& o) {
   if (f.operators == 0) f.operators = o.operators;
   if (f.max_operators == 0) f.max_operators = o.max_operators;
   f.global_stage = o.global_stage;
+  f.threads = o.threads;
   return f;
 }
 

@@ -168,6 +168,11 @@ struct ExtensionFitOptions {
   /// seeds (21, 22, 17, 22 eligible records) it passes 70 of 82 against 69 with the division
   /// alone and 68 under the level alone: each fixes Stribeck records the other misses.
   bool base_under_level = true;
+  /// The restart's NLR fits on different forces (divided by the level, under it, each with and
+  /// without the dictionary's viscous take-out) are independent: they run on this many threads
+  /// (0: one per core), each into its own slot, compared in a fixed order afterwards, so the
+  /// result does not depend on it.
+  unsigned threads = 1;
 };
 
 /// What identify_extensions returns.

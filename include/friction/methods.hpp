@@ -49,7 +49,7 @@ struct MethodOptions {
   long input_order = -1;           ///< DNLRX: >= 0 fixes the input-filter order nx
   bool global_stage = true;        ///< NLopt global stage where the method has one
   unsigned seed = 1;               ///< seeds of the global stages (results are reproducible)
-  unsigned threads = 0;            ///< DNLRX: threads of its order selection (0: one per core)
+  unsigned threads = 0;  ///< DNLRX's order selection, the extensions' restart (0: one per core)
   std::vector<Effect> extensions;  ///< pieces of methods.md 7 to identify with the base
   ExtensionFitOptions extension_fit;
   /// Maxwell Slip base: when the force as recorded wants every stiffness negative because an
