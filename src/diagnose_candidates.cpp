@@ -119,8 +119,11 @@ void judge_candidate(const Context& c, const State& s, Effect e, std::size_t ext
 }
 
 // Effect e's joint fit on top of s (no verdict yet); false when it threw (t says why).
+// `threads`: the candidate's own fits (from its profile, and again from the profile of each piece
+// accepted on an edge) are independent, and run on this many threads when the candidate runs
+// alone (lag_on_stribeck); compared in a fixed order, so the result does not depend on it.
 bool fit_candidate_only(const Context& c, const State& s, Effect e, const ResidualEvidence& ev,
-                        Tried& t) {
+                        Tried& t, unsigned threads = 1) {
   const ExtensionParameters<double> start = extension_start(e, s.ext, ev, c.est, c.f0ref);
   t.fit.effect = e;
   try {
@@ -130,21 +133,25 @@ bool fit_candidate_only(const Context& c, const State& s, Effect e, const Residu
     const double level = first_level(s.base, s.ext, c.est, &c.windows);
     const ProfiledStart p =
         profile_start(c.est, s.base, s.rho, level, start, e, c.windows, c.scales);
-    t.result = fit_extended_slip(
-        c.est, p.base, carried_state(c.est, s.base, s.ext, s.rho, p.base, p.ext, &c.windows), p.ext,
-        false, c.options.max_iterations);
     // A piece accepted on an edge (forward_pass) was fitted without what this candidate adds: its
     // own profile, with the candidate beside it, may find the basin the edge hid (a Stribeck
     // curve alone ran to exponent 5; with the viscous term and the lag its minimum is near 2).
-    for (const auto& [edge_effect, name] : s.at_bound) {
-      if (edge_effect == e || !s.ext.has(edge_effect)) continue;
+    std::vector<Effect> edges;
+    for (const auto& [edge_effect, name] : s.at_bound)
+      if (edge_effect != e && s.ext.has(edge_effect)) edges.push_back(edge_effect);
+    std::vector<ExtendedSlipFit> fits(1 + edges.size());
+    detail::parallel_for(fits.size(), threads, [&](std::size_t i) {
       const ProfiledStart q =
-          profile_start(c.est, p.base, s.rho, level, p.ext, edge_effect, c.windows, c.scales);
-      const ExtendedSlipFit g = fit_extended_slip(
+          i == 0 ? p
+                 : profile_start(c.est, p.base, s.rho, level, p.ext, edges[i - 1], c.windows,
+                                 c.scales);
+      fits[i] = fit_extended_slip(
           c.est, q.base, carried_state(c.est, s.base, s.ext, s.rho, q.base, q.ext, &c.windows),
           q.ext, false, c.options.max_iterations);
-      if (g.ok && (!t.result.ok || g.rss < t.result.rss)) t.result = g;
-    }
+    });
+    t.result = std::move(fits[0]);
+    for (std::size_t i = 1; i < fits.size(); ++i)
+      if (fits[i].ok && (!t.result.ok || fits[i].rss < t.result.rss)) t.result = fits[i];
   } catch (const std::exception& ex) {
     t.fit.verdict.fitted = false;
     t.fit.verdict.failure = ex.what();
@@ -178,7 +185,7 @@ Tried lag_on_stribeck(const Context& c, const State& s, const Tried& stribeck) {
   Tried t;
   const auto t_start = std::chrono::steady_clock::now();
   if (fit_candidate_only(c, on, Effect::frictional_lag,
-                         gather_evidence(on.base, on.ext, c.est, on.rho), t))
+                         gather_evidence(on.base, on.ext, c.est, on.rho), t, c.options.threads))
     judge_candidate(c, s, Effect::frictional_lag, extra_parameters(t.result.ext, s.ext), t);
   t.fit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return t;
