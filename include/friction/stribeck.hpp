@@ -22,6 +22,7 @@
 #pragma once
 
 #include <cmath>
+#include <type_traits>
 
 #include "friction/error.hpp"
 #include "friction/scalar.hpp"
@@ -36,7 +37,14 @@ T stribeck_weight(const T& v, const T& stribeck_velocity, const T& stribeck_expo
   const double s = sign_of(v);
   if (s == 0.0) return T(1);
   const T ratio = T(s * v) / stribeck_velocity;  // |v| / vs > 0
-  return exp(-exp(stribeck_exponent * log(ratio)));
+  const T power_log = stribeck_exponent * log(ratio);
+  if constexpr (std::is_same_v<T, double>) {
+    // (|v|/vs)^q > e^6.62 > 749: exp(-749) is below half the smallest subnormal, so w is +0
+    // exactly, as the two exponentials would give.  Sliding far above vs is most of a record's
+    // samples, and the exponentials were a tenth of a diagnosis.
+    if (power_log > 6.62) return 0.0;
+  }
+  return exp(-exp(power_log));
 }
 
 /// Parameters of the Stribeck curve g(v), SI units.  The member names are the ones of methods.md
