@@ -5,6 +5,7 @@
 
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -193,6 +194,29 @@ TEST(CliUsage, BadUsageExitsWithTwoAndBadDataWithOne) {
   r = run_cli("simulate --model-file " + dir.file("broken.json") + " --data " + rec);
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.err.find("broken.json:2:"), std::string::npos) << r.err;
+}
+
+// The estimation and validation records are read on two threads (load_record_pair): the error a
+// user sees must not depend on which finished first.  Both bad: the estimation file's, one line;
+// only the validation file bad: its own.
+TEST(CliUsage, TwoBadRecordsReportTheEstimationFilesErrorFirst) {
+  TempDir dir;
+  friction::testing::write_text(dir.file("est.csv"), "time,x,force\n0,0,1\n0.1,abc,2\n");
+  friction::testing::write_text(dir.file("val.csv"), "time,x,force\n0,0,1\n0.1,0,x\n");
+  const std::string good = dir.file("good.csv");
+  ASSERT_EQ(run_cli("generate" + kShort + "--out " + good).status, 0);
+  for (const std::string command : {"identify --model maxwell-slip", "compare", "diagnose"}) {
+    for (int repeat = 0; repeat < 5; ++repeat) {
+      auto r = run_cli(command + " --data " + dir.file("est.csv") + " --validate " +
+                       dir.file("val.csv"));
+      EXPECT_EQ(r.status, 1) << command;
+      EXPECT_NE(r.err.find("est.csv:3:2"), std::string::npos) << command << ": " << r.err;
+      EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << command << ": " << r.err;
+    }
+    auto r = run_cli(command + " --data " + good + " --validate " + dir.file("val.csv"));
+    EXPECT_EQ(r.status, 1) << command;
+    EXPECT_NE(r.err.find("val.csv:3:3"), std::string::npos) << command << ": " << r.err;
+  }
 }
 
 TEST(CliSimulate, NeverLeavesAHalfWrittenOutput) {

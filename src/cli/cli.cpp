@@ -4,6 +4,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "../parallel_for.hpp"
 #include "commands.hpp"
 #include "friction/atomic_file.hpp"
 #include "friction/version.hpp"
@@ -22,6 +23,19 @@ ReadOptions read_options(const InputOptions& in, bool require_force) {
 
 Record load_record(const std::string& path, const InputOptions& in, bool require_force) {
   return read_record(path, read_options(in, require_force));
+}
+
+std::pair<Record, Record> load_record_pair(const std::string& estimation,
+                                           const std::string& validation,
+                                           const InputOptions& in) {
+  std::pair<Record, Record> out;
+  detail::parallel_for(2, 2, [&](std::size_t i) {
+    if (i == 0)
+      out.first = load_record(estimation, in, true);
+    else
+      out.second = load_record(validation, in, true);
+  });
+  return out;
 }
 
 AnyModel load_model(const std::string& path) {

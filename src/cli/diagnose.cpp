@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <iostream>
 #include <sstream>
+#include <tuple>
 
 #include "../number_format.hpp"
 #include "commands.hpp"
@@ -117,14 +118,15 @@ report::Document diagnose_report(const Json& doc, const Diagnosis& d, const Reco
 
 int run_diagnose(const DiagnoseCliOptions& o) {
   check_report_path(o.report);
-  Record all = load_record(o.data, o.input, /*require_force=*/true);
-  std::vector<std::string> warnings = all.conditioning.warnings;
   Record est, val;
+  std::vector<std::string> warnings;
   if (!o.validate.empty()) {
-    est = std::move(all);
-    val = load_record(o.validate, o.input, true);
+    std::tie(est, val) = load_record_pair(o.data, o.validate, o.input);
+    warnings = est.conditioning.warnings;
     for (const auto& w : val.conditioning.warnings) warnings.push_back(o.validate + ": " + w);
   } else {
+    Record all = load_record(o.data, o.input, /*require_force=*/true);
+    warnings = all.conditioning.warnings;
     if (!(o.holdout > 0 && o.holdout < 1))
       throw OptionError("--holdout must lie strictly between 0 and 1");
     const std::size_t n = all.size();

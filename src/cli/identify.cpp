@@ -8,6 +8,7 @@
 #include <iostream>
 #include <optional>
 #include <sstream>
+#include <tuple>
 
 #include "../number_format.hpp"
 #include "../parallel_for.hpp"
@@ -93,15 +94,19 @@ struct Records {
 Records load_records(const std::string& data, const std::string& validate, double holdout,
                      bool hold_out_when_missing, const InputOptions& in) {
   Records rs;
-  Record all = load_record(data, in, /*require_force=*/true);
-  rs.warnings = all.conditioning.warnings;
   if (!validate.empty()) {
-    rs.estimation = std::move(all);
-    rs.validation = load_record(validate, in, true);
+    std::tie(rs.estimation, rs.validation) = load_record_pair(data, validate, in);
+    rs.warnings = rs.estimation.conditioning.warnings;
     for (const auto& w : rs.validation.conditioning.warnings)
       rs.warnings.push_back(validate + ": " + w);
     rs.has_validation = true;
-  } else if (hold_out_when_missing) {
+    rs.data.push_back(data_json(rs.estimation, "estimation"));
+    rs.data.push_back(data_json(rs.validation, "validation"));
+    return rs;
+  }
+  Record all = load_record(data, in, /*require_force=*/true);
+  rs.warnings = all.conditioning.warnings;
+  if (hold_out_when_missing) {
     if (!(holdout > 0 && holdout < 1))
       throw OptionError("--holdout must lie strictly between 0 and 1");
     const std::size_t n = all.size();
