@@ -365,7 +365,8 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
             state_from(nr.report.initial_deflections, nr.parameters.threshold);
         const double a = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
         for (double& v : rho) v = std::clamp(v - a, -1.0, 1.0);
-        outcomes[i].fit = fit_extended_slip(r, nr.parameters, rho, cur.ext, false, o.max_iterations);
+        outcomes[i].fit =
+            fit_extended_slip(r, nr.parameters, rho, cur.ext, false, o.max_iterations);
       }
     } catch (const Error&) {
       outcomes[i].fit.reset();

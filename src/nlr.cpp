@@ -1049,9 +1049,9 @@ Fit fit_operators(const Data& d, std::size_t m, const std::vector<double>* previ
   // the resolution with a tiny stiffness, seed 9 of studies.md 1) while the others share the
   // work of one more.  The operator that carries the least of the sliding force (k_i Delta_i) is
   // moved into the largest log-gap of the others' thresholds (or beyond the largest) and the fit
-  // re-polished from there when that start is already better; kept when the polish is better.  Skipped at the noise floor, and during the order
-  // selection, where the warm start from M - 1 (one threshold inserted in the largest gap) is
-  // the same move.
+  // re-polished from there when that start is already better; kept when the polish is better.
+  // Skipped at the noise floor, and during the order selection, where the warm start from M - 1
+  // (one threshold inserted in the largest gap) is the same move.
   auto relocate_weakest = [&]() {
     if (o.operators == 0 || m < 2 || best.percent <= d.floor_percent ||
         best.k.size() != static_cast<Eigen::Index>(m))

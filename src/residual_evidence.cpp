@@ -139,7 +139,8 @@ void velocity_bins(const Signals& s, ResidualEvidence& ev) {
   for (int d : {1, -1}) {
     std::vector<std::pair<double, std::size_t>> pts;  // (speed on the grid, sample)
     for (std::size_t k = 0; k < s.e.size(); ++k)
-      if (s.sliding[k] > 0 && s.dir[k] == d) pts.emplace_back(std::round(std::abs(s.v[k]) / grid), k);
+      if (s.sliding[k] > 0 && s.dir[k] == d)
+        pts.emplace_back(std::round(std::abs(s.v[k]) / grid), k);
     if (pts.size() < 16) continue;
     std::sort(pts.begin(), pts.end());
     const std::size_t bins = 6;

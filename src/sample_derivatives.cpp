@@ -350,7 +350,8 @@ void minimise_errors(const Spectrum& p, std::span<const NoiseModel> models, doub
     const std::size_t dv = w.velocity_degree / 2 - 1, da = w.acceleration_degree / 2 - 1;
     const std::size_t mv = w.velocity_half_width, ma = w.acceleration_half_width;
     if (models[k].loss)
-      *models[k].loss = {e.pass_v[dv][mv] - e.cross_v[dv][mv], e.pass_a[da][ma] - e.cross_a[da][ma]};
+      *models[k].loss = {e.pass_v[dv][mv] - e.cross_v[dv][mv],
+                         e.pass_a[da][ma] - e.cross_a[da][ma]};
   }
 }
 
