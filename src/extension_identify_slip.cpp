@@ -341,10 +341,7 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
   // Each branch: NLR, then the joint fit from its base; an Error leaves its slot empty (no fit
   // from that force; another may give one).  Several branches share the threads; one alone gives
   // them to NLR's order selection.
-  struct Outcome {
-    std::optional<ExtendedSlipFit> fit;
-  };
-  std::vector<Outcome> outcomes(branches.size());
+  std::vector<std::optional<ExtendedSlipFit>> fits(branches.size());
   NlrOptions under = n;
   under.refine_initial_state = false;  // its search knows only the nominal box
   n.threads = under.threads = branches.size() > 1 ? 1 : o.threads;
@@ -353,7 +350,7 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
     try {
       if (!b.under) {
         const NlrResult nr = identify_maxwell_slip(r.time, x, b.force, n);
-        outcomes[i].fit = fit_extended_slip(
+        fits[i] = fit_extended_slip(
             r, nr.parameters, state_from(nr.report.initial_deflections, nr.parameters.threshold),
             cur.ext, false, o.max_iterations);
       } else {
@@ -365,16 +362,15 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
             state_from(nr.report.initial_deflections, nr.parameters.threshold);
         const double a = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
         for (double& v : rho) v = std::clamp(v - a, -1.0, 1.0);
-        outcomes[i].fit =
-            fit_extended_slip(r, nr.parameters, rho, cur.ext, false, o.max_iterations);
+        fits[i] = fit_extended_slip(r, nr.parameters, rho, cur.ext, false, o.max_iterations);
       }
     } catch (const Error&) {
-      outcomes[i].fit.reset();
+      // Its slot stays empty.
     }
   });
   std::optional<ExtendedSlipFit> best;
   for (std::size_t i = 0; i < branches.size(); ++i) {
-    std::optional<ExtendedSlipFit>& g = outcomes[i].fit;
+    std::optional<ExtendedSlipFit>& g = fits[i];
     if (g && g->ok && (!best || fit_bic(r, *g) < fit_bic(r, *best))) {
       best = std::move(*g);
       under_level = branches[i].under;

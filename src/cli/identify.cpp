@@ -100,29 +100,28 @@ Records load_records(const std::string& data, const std::string& validate, doubl
     for (const auto& w : rs.validation.conditioning.warnings)
       rs.warnings.push_back(validate + ": " + w);
     rs.has_validation = true;
-    rs.data.push_back(data_json(rs.estimation, "estimation"));
-    rs.data.push_back(data_json(rs.validation, "validation"));
-    return rs;
-  }
-  Record all = load_record(data, in, /*require_force=*/true);
-  rs.warnings = all.conditioning.warnings;
-  if (hold_out_when_missing) {
-    if (!(holdout > 0 && holdout < 1))
-      throw OptionError("--holdout must lie strictly between 0 and 1");
-    const std::size_t n = all.size();
-    const auto n_est = static_cast<std::size_t>(std::llround((1.0 - holdout) * n));
-    if (n_est < 2 * kMinSamples || n - n_est < kMinSamples)
-      throw DataError(data, 0, 0,
-                      "too few samples to hold out " + fixed(100 * holdout, 0) +
-                          " % for validation; give --validate");
-    rs.estimation = all.slice(0, n_est);
-    rs.validation = all.slice(n_est, n);
-    rs.has_validation = true;
-    rs.warnings.push_back("no --validate given: the last " + fixed(100 * holdout, 0) + " % of " +
-                          data + " (from t = " + format_number(rs.validation.time.front(), 6) +
-                          " s) is held out for validation");
   } else {
-    rs.estimation = std::move(all);
+    Record all = load_record(data, in, /*require_force=*/true);
+    rs.warnings = all.conditioning.warnings;
+    if (!hold_out_when_missing) {
+      rs.estimation = std::move(all);
+    } else {
+      if (!(holdout > 0 && holdout < 1))
+        throw OptionError("--holdout must lie strictly between 0 and 1");
+      const std::size_t n = all.size();
+      const auto n_est = static_cast<std::size_t>(std::llround((1.0 - holdout) * n));
+      if (n_est < 2 * kMinSamples || n - n_est < kMinSamples)
+        throw DataError(data, 0, 0,
+                        "too few samples to hold out " + fixed(100 * holdout, 0) +
+                            " % for validation; give --validate");
+      rs.estimation = all.slice(0, n_est);
+      rs.validation = all.slice(n_est, n);
+      rs.has_validation = true;
+      rs.warnings.push_back("no --validate given: the last " + fixed(100 * holdout, 0) +
+                            " % of " + data + " (from t = " +
+                            format_number(rs.validation.time.front(), 6) +
+                            " s) is held out for validation");
+    }
   }
   rs.data.push_back(data_json(rs.estimation, "estimation"));
   if (rs.has_validation) rs.data.push_back(data_json(rs.validation, "validation"));
