@@ -25,24 +25,36 @@ void normal_factor(Eigen::MatrixXd& gram, Eigen::MatrixXd& factor) {
   factor = factor * scale.asDiagonal();
 }
 
+GramAccumulator::GramAccumulator(Eigen::MatrixXd& gram)
+    : gram_(gram), rows_(kRows, gram.rows()) {}
+
+void GramAccumulator::add(const double* const* blocks, const std::vector<int>& sizes, double r) {
+  Eigen::Index c = 0;
+  for (std::size_t k = 0; k < sizes.size(); ++k) {
+    if (!blocks[k]) continue;
+    for (int j = 0; j < sizes[k]; ++j) rows_(used_, c + j) = blocks[k][j];
+    c += sizes[k];
+  }
+  rows_(used_, c) = r;
+  if (++used_ == kRows) flush();
+}
+
+void GramAccumulator::flush() {
+  if (used_ == 0) return;
+  gram_.selfadjointView<Eigen::Lower>().rankUpdate(rows_.topRows(used_).transpose());
+  used_ = 0;
+}
+
 void accumulate_gram(const std::vector<const double*>& blocks, const std::vector<int>& sizes,
                      const double* residuals, Eigen::Index n, Eigen::MatrixXd& gram) {
-  const Eigen::Index p = gram.rows() - 1;
-  constexpr Eigen::Index kRows = 256;
-  Eigen::MatrixXd rows(kRows, p + 1);
-  for (Eigen::Index t0 = 0; t0 < n; t0 += kRows) {
-    const Eigen::Index b = std::min(kRows, n - t0);
-    Eigen::Index c = 0;
-    for (std::size_t k = 0; k < blocks.size(); ++k) {
-      if (!blocks[k]) continue;
-      const Eigen::Index w = sizes[k];
-      using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-      rows.block(0, c, b, w) = Eigen::Map<const RowMajor>(blocks[k] + t0 * w, b, w);
-      c += w;
-    }
-    rows.block(0, p, b, 1) = Eigen::Map<const Eigen::VectorXd>(residuals + t0, b);
-    gram.selfadjointView<Eigen::Lower>().rankUpdate(rows.topRows(b).transpose());
+  GramAccumulator acc(gram);
+  std::vector<const double*> row(blocks.size());
+  for (Eigen::Index t = 0; t < n; ++t) {
+    for (std::size_t k = 0; k < blocks.size(); ++k)
+      row[k] = blocks[k] ? blocks[k] + t * sizes[k] : nullptr;
+    acc.add(row.data(), sizes, residuals[t]);
   }
+  acc.flush();
 }
 
 RowCompressor::RowCompressor(Eigen::Index cols) : cols_(cols), stack_(0, cols) {}
@@ -66,7 +78,8 @@ Eigen::MatrixXd RowCompressor::factor() const {
   return r;
 }
 
-CompressedCost::CompressedCost(ceres::CostFunction* inner) : inner_(inner) {
+CompressedCost::CompressedCost(ceres::CostFunction* inner)
+    : inner_(inner), streaming_(dynamic_cast<const RowStreamingCost*>(inner)) {
   *mutable_parameter_block_sizes() = inner_->parameter_block_sizes();
   int p = 0;
   for (int s : inner_->parameter_block_sizes()) p += s;
@@ -85,6 +98,56 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
     out(rows - 1) = Eigen::Map<const Eigen::VectorXd>(residuals_.data(), n).norm();
     return std::isfinite(out(rows - 1));
   }
+  if (streaming_ && streaming_->streams()) {
+    if (!evaluate_streamed(parameters, jacobians)) return false;
+  } else {
+    if (!evaluate_whole(parameters, jacobians)) return false;
+  }
+  normal_factor(gram_, factor_);
+  if (!factor_.allFinite()) return false;
+  // Rows beyond P + 1 of the requested columns (blocks held constant) are zero.
+  const auto& sizes = inner_->parameter_block_sizes();
+  Eigen::Index p = 0;
+  for (std::size_t b = 0; b < sizes.size(); ++b)
+    if (jacobians[b]) p += sizes[b];
+  out.setZero();
+  out.head(p + 1) = factor_.col(p);
+  Eigen::Index c = 0;
+  for (std::size_t b = 0; b < sizes.size(); ++b) {
+    if (!jacobians[b]) continue;
+    using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    Eigen::Map<RowMajor> j(jacobians[b], rows, sizes[b]);
+    j.setZero();
+    j.topRows(p + 1) = factor_.middleCols(c, sizes[b]);
+    c += sizes[b];
+  }
+  return true;
+}
+
+bool CompressedCost::evaluate_streamed(double const* const* parameters, double** jacobians) const {
+  const auto& sizes = inner_->parameter_block_sizes();
+  const std::unique_ptr<bool[]> requested(new bool[sizes.size()]);
+  Eigen::Index p = 0;
+  for (std::size_t b = 0; b < sizes.size(); ++b) {
+    requested[b] = jacobians[b] != nullptr;
+    if (requested[b]) p += sizes[b];
+  }
+  gram_.setZero(p + 1, p + 1);
+  GramAccumulator acc(gram_);
+  std::vector<const double*> row(sizes.size(), nullptr);
+  const bool ok = streaming_->EvaluateRows(
+      parameters, residuals_.data(), requested.get(),
+      [&](std::size_t k, const double* const* rows) {
+        for (std::size_t b = 0; b < sizes.size(); ++b) row[b] = requested[b] ? rows[b] : nullptr;
+        acc.add(row.data(), sizes, residuals_[k]);
+      });
+  if (!ok) return false;
+  acc.flush();
+  return true;
+}
+
+bool CompressedCost::evaluate_whole(double const* const* parameters, double** jacobians) const {
+  const Eigen::Index n = inner_->num_residuals();
   const auto& sizes = inner_->parameter_block_sizes();
   jacobians_.resize(sizes.size());
   std::vector<double*> inner_jacobians(sizes.size(), nullptr);
@@ -100,20 +163,6 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
   if (!inner_->Evaluate(parameters, residuals_.data(), inner_jacobians.data())) return false;
   gram_.setZero(p + 1, p + 1);
   accumulate_gram(blocks, sizes, residuals_.data(), n, gram_);
-  normal_factor(gram_, factor_);
-  if (!factor_.allFinite()) return false;
-  // Rows beyond P + 1 of the requested columns (blocks held constant) are zero.
-  out.setZero();
-  out.head(p + 1) = factor_.col(p);
-  Eigen::Index c = 0;
-  for (std::size_t b = 0; b < sizes.size(); ++b) {
-    if (!jacobians[b]) continue;
-    using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-    Eigen::Map<RowMajor> j(jacobians[b], rows, sizes[b]);
-    j.setZero();
-    j.topRows(p + 1) = factor_.middleCols(c, sizes[b]);
-    c += sizes[b];
-  }
   return true;
 }
 

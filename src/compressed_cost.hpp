@@ -24,6 +24,7 @@
 
 #include <Eigen/Core>
 
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -34,11 +35,47 @@ namespace friction::detail {
 /// S^-1 G S^-1 = P^T L D L^T P (negative pivots from rounding clipped to 0).
 void normal_factor(Eigen::MatrixXd& gram, Eigen::MatrixXd& factor);
 
+/// Adds rows of [J r], one at a time, to the lower triangle of a Gram matrix ((P+1) x (P+1)):
+/// they are gathered 256 at a time (in cache) and added by one rank update per 256.  What
+/// keeps the memory of a compressed evaluation independent of N: no N x P Jacobian is stored
+/// when its rows come one by one (RowStreamingCost).
+class GramAccumulator {
+ public:
+  explicit GramAccumulator(Eigen::MatrixXd& gram);
+  GramAccumulator(const GramAccumulator&) = delete;
+  GramAccumulator& operator=(const GramAccumulator&) = delete;
+  ~GramAccumulator() = default;
+  /// One row: block b's sizes[b] entries at blocks[b] (null: not requested, no columns), then r.
+  void add(const double* const* blocks, const std::vector<int>& sizes, double r);
+  /// Adds what is gathered; call once after the last row.
+  void flush();
+
+ private:
+  static constexpr Eigen::Index kRows = 256;
+  Eigen::MatrixXd& gram_;
+  Eigen::MatrixXd rows_;
+  Eigen::Index used_ = 0;
+};
+
 /// Adds the rows of [J r] to the lower triangle of `gram` ((P+1) x (P+1)), J given as row-major
-/// blocks of columns (null: a block whose Jacobian was not requested, skipped).  Row blocks of
-/// 256 keep the gathered rows in cache.
+/// blocks of columns (null: a block whose Jacobian was not requested, skipped).
 void accumulate_gram(const std::vector<const double*>& blocks, const std::vector<int>& sizes,
                      const double* residuals, Eigen::Index n, Eigen::MatrixXd& gram);
+
+/// A cost that can hand its Jacobian over row by row instead of as N x P blocks: CompressedCost
+/// then needs memory of order P^2, not N P.  `requested[b]` says whether block b's columns are
+/// wanted; `visit(k, rows)` is called for k = 0, ..., N - 1 in order with rows[b] pointing at row
+/// k of block b (valid during the call; null when not requested), after all N residuals are
+/// written.
+class RowStreamingCost {
+ public:
+  using RowVisitor = std::function<void(std::size_t k, const double* const* rows)>;
+  virtual ~RowStreamingCost() = default;
+  /// Whether EvaluateRows can be used at all (false: Evaluate with N x P blocks).
+  virtual bool streams() const = 0;
+  virtual bool EvaluateRows(double const* const* parameters, double* residuals,
+                            const bool* requested, const RowVisitor& visit) const = 0;
+};
 
 /// The triangular factor R (P x P) of a tall matrix A (N x P) given by blocks of rows, A = Q R:
 /// each block is stacked under the R so far and the stack re-factored (Householder), so R carries
@@ -68,7 +105,12 @@ class CompressedCost final : public ceres::CostFunction {
   const ceres::CostFunction& inner() const { return *inner_; }
 
  private:
+  // Both leave the lower triangle of [J r]'s Gram matrix in gram_.
+  bool evaluate_streamed(double const* const* parameters, double** jacobians) const;
+  bool evaluate_whole(double const* const* parameters, double** jacobians) const;
+
   std::unique_ptr<ceres::CostFunction> inner_;
+  const RowStreamingCost* streaming_ = nullptr;  // inner_ itself when it streams its rows
   mutable std::vector<double> residuals_;
   mutable std::vector<std::vector<double>> jacobians_;
   mutable Eigen::MatrixXd gram_, factor_;

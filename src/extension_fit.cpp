@@ -111,7 +111,7 @@ struct ExtendedCost {
 // model, so the Jacobian agrees with it to rounding (the test compares them).  It needs F0 given
 // (a reference force > 0: otherwise F0 is the base's sliding force and couples all operators) and
 // E + 2 <= 16; other fits keep the whole-model derivatives.
-class StructuredSlipCost final : public ceres::CostFunction {
+class StructuredSlipCost final : public ceres::CostFunction, public detail::RowStreamingCost {
  public:
   explicit StructuredSlipCost(ExtendedCost* functor) : functor_(functor), whole_(functor) {
     whole_.AddParameterBlock(static_cast<int>(2 * functor->operators + pieces()));
@@ -123,13 +123,27 @@ class StructuredSlipCost final : public ceres::CostFunction {
 
   bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
     if (!jacobians || !structured()) return whole_.Evaluate(p, residuals, jacobians);
+    const bool requested[2] = {jacobians[0] != nullptr, jacobians[1] != nullptr};
+    const std::size_t cols = 2 * functor_->operators + pieces();
+    const std::size_t states = functor_->operators + lag();
+    return EvaluateRows(p, residuals, requested, [&](std::size_t k, const double* const* rows) {
+      if (jacobians[0]) std::copy_n(rows[0], cols, jacobians[0] + k * cols);
+      if (jacobians[1]) std::copy_n(rows[1], states, jacobians[1] + k * states);
+    });
+  }
+
+  bool streams() const override { return structured(); }
+
+  bool EvaluateRows(double const* const* p, double* residuals, const bool* requested,
+                    const RowVisitor& visit) const override {
+    if (!structured()) return false;
     if (!(*functor_)(p, residuals)) return false;
     const std::size_t e = pieces() + lag();
-    if (e + 2 <= 4) return jacobian<4, 4>(p, jacobians);
-    if (e <= 4) return jacobian<4, 8>(p, jacobians);
-    if (e + 2 <= 8) return jacobian<8, 8>(p, jacobians);
-    if (e <= 8) return jacobian<8, 16>(p, jacobians);
-    return jacobian<16, 16>(p, jacobians);
+    if (e + 2 <= 4) return jacobian<4, 4>(p, requested, visit);
+    if (e <= 4) return jacobian<4, 8>(p, requested, visit);
+    if (e + 2 <= 8) return jacobian<8, 8>(p, requested, visit);
+    if (e <= 8) return jacobian<8, 16>(p, requested, visit);
+    return jacobian<16, 16>(p, requested, visit);
   }
 
   const ceres::CostFunction& whole_model() const { return whole_; }
@@ -150,9 +164,11 @@ class StructuredSlipCost final : public ceres::CostFunction {
 
   // NF lanes for the pieces' pass (>= E, plus the lag's offset u when there is one: it is felt
   // only through the pieces), NO for an operator's (>= those + 2: its log Delta and rho; its log k
-  // enters linearly and is differentiated by hand).
+  // enters linearly and is differentiated by hand).  The operators step in lockstep with the
+  // pieces, sample by sample, so that a row is complete when it is handed over and nothing of
+  // length N is kept: the memory of an evaluation does not grow with the record.
   template <int NF, int NO>
-  bool jacobian(double const* const* p, double** jacobians) const {
+  bool jacobian(double const* const* p, const bool* requested, const RowVisitor& visit) const {
     static_assert(NO >= NF, "an operator's Jets carry the pieces' lanes");
     using JF = ceres::Jet<double, NF>;
     using JO = ceres::Jet<double, NO>;
@@ -174,14 +190,17 @@ class StructuredSlipCost final : public ceres::CostFunction {
       return out;
     };
     thread_local std::vector<JF> x;
-    thread_local std::vector<JO> dx, up, down, turn, up_turn, down_turn;
-    x.resize(n), dx.resize(n), up.resize(n), down.resize(n), turn.resize(n);
-    up_turn.resize(n), down_turn.resize(n);
-    JO a(0), level0(1);
-    double* jt = jacobians[0];
-    double* jr = jacobians[1];
+    x.resize(n);
+    std::vector<double> theta_row(cols), state_row(states);
+    const double* rows[2] = {requested[0] ? theta_row.data() : nullptr,
+                             requested[1] ? state_row.data() : nullptr};
+    std::vector<JO> delta(m), limit(m);
+    std::vector<double> stiffness(m);
+    const int own = static_cast<int>(e + l);
+    JO a(0);
     try {
-      // Pass 1: the pieces over the record; the added force starts the pieces' columns.
+      // The pieces over the record (with a base whose one operator has stiffness 0); the added
+      // force starts the pieces' columns of each row.
       MaxwellSlipParameters<JF> silent;
       silent.stiffness = {JF(0)};
       silent.threshold = {JF(1)};
@@ -196,49 +215,45 @@ class StructuredSlipCost final : public ceres::CostFunction {
           std::span<const double>(r.normal), &f.windows,
           [&](std::size_t k, const ExtendedMotion<JF>& c, const JF& added) {
             const JF& level = pieces_only.level();
-            if (k == 0) level0 = lift(level);
-            dx[k] = lift(c.dx);
-            turn[k] = lift(c.turn);
-            up[k] = lift(level * (JF(1) + af));  // the slip limits of maxwell_slip.hpp's step
-            down[k] = lift(level * (JF(1) - af));
+            if (k == 0) {  // the state is given at level 1 (extensions.hpp: Initial state)
+              const JO level0 = lift(level);
+              for (std::size_t i = 0; i < m; ++i) {
+                stiffness[i] = exp(p[0][i]);
+                limit[i] = exp(JO(p[0][m + i], own));
+                delta[i] = clamp(JO((JO(p[1][i], own + 1) + a) * limit[i]),
+                                 JO(-(JO(1) - a) * limit[i]), JO((JO(1) + a) * limit[i]));
+                delta[i] *= level0;
+              }
+            }
+            const JO dx = lift(c.dx), turn = lift(c.turn);
+            const JO up = lift(level * (JF(1) + af));  // the slip limits of maxwell_slip.hpp's step
+            const JO down = lift(level * (JF(1) - af));
             const JF& at_turn = pieces_only.turn_level();  // motion.hpp: The level at the turn
-            up_turn[k] = lift(at_turn * (JF(1) + af));
-            down_turn[k] = lift(at_turn * (JF(1) - af));
-            if (jt)
-              for (std::size_t q = 0; q < e; ++q) jt[k * cols + 2 * m + q] = -f.scale * added.v[q];
-            if (jr && l) jr[k * states + m] = -f.scale * added.v[e];
+            const JO up_turn = lift(at_turn * (JF(1) + af));
+            const JO down_turn = lift(at_turn * (JF(1) - af));
+            for (std::size_t q = 0; q < e; ++q) theta_row[2 * m + q] = -f.scale * added.v[q];
+            if (l) state_row[m] = -f.scale * added.v[e];
+            // Each operator (eqs. 4-5 of maxwell_slip.hpp, one operator).
+            for (std::size_t i = 0; i < m; ++i) {
+              JO& d = delta[i];
+              const JO lo = -down * limit[i], hi = up * limit[i];
+              if (turn.a != 0.0)  // motion.hpp, Turns between samples
+                d = clamp(JO(clamp(JO(d + turn), JO(-down_turn * limit[i]),
+                                   JO(up_turn * limit[i])) +
+                             (dx - turn)),
+                          lo, hi);
+              else
+                d = clamp(JO(d + dx), lo, hi);
+              const double g = -f.scale * stiffness[i];  // d residual / d delta
+              for (std::size_t q = 0; q < e; ++q) theta_row[2 * m + q] += g * d.v[q];
+              theta_row[i] = g * d.a;  // d(k delta) / d log k = k delta
+              theta_row[m + i] = g * d.v[own];
+              state_row[i] = g * d.v[own + 1];
+              if (l) state_row[m] += g * d.v[e];
+            }
+            visit(k, rows);
           },
           std::span<const double>(r.measured_displacement));
-      // Pass 2: operator by operator (eqs. 4-5 of maxwell_slip.hpp, one operator).
-      const int own = static_cast<int>(e + l);
-      for (std::size_t i = 0; i < m; ++i) {
-        const double k_i = exp(p[0][i]);
-        const JO limit = exp(JO(p[0][m + i], own));
-        JO delta = clamp(JO((JO(p[1][i], own + 1) + a) * limit), JO(-(JO(1) - a) * limit),
-                         JO((JO(1) + a) * limit));
-        delta *= level0;  // the state is given at level 1 (extensions.hpp: Initial state)
-        for (std::size_t k = 0; k < n; ++k) {
-          const JO lo = -down[k] * limit, hi = up[k] * limit;
-          if (turn[k].a != 0.0)  // motion.hpp, Turns between samples
-            delta = clamp(JO(clamp(JO(delta + turn[k]), JO(-down_turn[k] * limit),
-                                   JO(up_turn[k] * limit)) +
-                             (dx[k] - turn[k])),
-                          lo, hi);
-          else
-            delta = clamp(JO(delta + dx[k]), lo, hi);
-          const double g = -f.scale * k_i;  // d residual / d delta
-          if (jt) {
-            double* row = jt + k * cols;
-            for (std::size_t q = 0; q < e; ++q) row[2 * m + q] += g * delta.v[q];
-            row[i] = g * delta.a;  // d(k delta) / d log k = k delta
-            row[m + i] = g * delta.v[own];
-          }
-          if (jr) {
-            jr[k * states + i] = g * delta.v[own + 1];
-            if (l) jr[k * states + m] += g * delta.v[e];
-          }
-        }
-      }
     } catch (const InvalidParameter&) {
       return false;
     }

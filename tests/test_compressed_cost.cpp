@@ -9,6 +9,7 @@
 #include <Eigen/SVD>
 
 #include <cmath>
+#include <memory>
 #include <random>
 #include <vector>
 
@@ -106,6 +107,71 @@ TEST(CompressedCost, CeresTakesTheSameStepsAsOnTheWholeProblem) {
         EXPECT_NEAR(small.b[0], 3.1, 0.01);
       }
     }
+  }
+}
+
+// The oscillation cost handing its rows over one by one (RowStreamingCost), from a whole
+// evaluation of its own; `streams` false makes CompressedCost take the N x P path instead.
+class StreamedOscillation final : public ceres::CostFunction,
+                                  public friction::detail::RowStreamingCost {
+ public:
+  StreamedOscillation(const Oscillation& data, bool streams)
+      : inner_(oscillation_cost(data)), streams_(streams) {
+    *mutable_parameter_block_sizes() = inner_->parameter_block_sizes();
+    set_num_residuals(inner_->num_residuals());
+  }
+  bool Evaluate(double const* const* p, double* r, double** j) const override {
+    return inner_->Evaluate(p, r, j);
+  }
+  bool streams() const override { return streams_; }
+  bool EvaluateRows(double const* const* p, double* r, const bool* requested,
+                    const RowVisitor& visit) const override {
+    const std::size_t n = static_cast<std::size_t>(num_residuals());
+    std::vector<double> j0(n * 2), j1(n * 3);
+    double* j[] = {requested[0] ? j0.data() : nullptr, requested[1] ? j1.data() : nullptr};
+    if (!inner_->Evaluate(p, r, j)) return false;
+    for (std::size_t k = 0; k < n; ++k) {
+      const double* rows[] = {j[0] ? j[0] + 2 * k : nullptr, j[1] ? j[1] + 3 * k : nullptr};
+      visit(k, rows);
+    }
+    return true;
+  }
+
+ private:
+  std::unique_ptr<ceres::CostFunction> inner_;
+  bool streams_;
+};
+
+// Rows handed over one by one must give the very numbers of the N x P path: the same Gram matrix
+// to the last bit, for any pattern of held blocks and for N below, at and off a multiple of the
+// 256 rows gathered per update.
+TEST(CompressedCost, RowsHandedOverOneByOneGiveTheSameNumbers) {
+  for (std::size_t n : {100u, 256u, 512u, 3001u}) {
+    const Oscillation data = make_data(31u + static_cast<unsigned>(n), n);
+    const CompressedCost streamed(new StreamedOscillation(data, true));
+    const CompressedCost whole(new StreamedOscillation(data, false));
+    const std::vector<double> a{1.7, 0.25}, b{3.05, 0.3, 0.1};
+    const double* p[] = {a.data(), b.data()};
+    for (int pattern = 1; pattern < 4; ++pattern) {  // which blocks are free
+      std::vector<double> r1(6), r2(6), j1a(6 * 2, -1), j1b(6 * 3, -1), j2a(6 * 2, -2),
+          j2b(6 * 3, -2);
+      double* j1[] = {pattern & 1 ? j1a.data() : nullptr, pattern & 2 ? j1b.data() : nullptr};
+      double* j2[] = {pattern & 1 ? j2a.data() : nullptr, pattern & 2 ? j2b.data() : nullptr};
+      ASSERT_TRUE(streamed.Evaluate(p, r1.data(), j1));
+      ASSERT_TRUE(whole.Evaluate(p, r2.data(), j2));
+      EXPECT_EQ(r1, r2) << "n " << n << ", pattern " << pattern;
+      if (pattern & 1) {
+        EXPECT_EQ(j1a, j2a) << "n " << n << ", pattern " << pattern;
+      }
+      if (pattern & 2) {
+        EXPECT_EQ(j1b, j2b) << "n " << n << ", pattern " << pattern;
+      }
+    }
+    // And the cost alone (no Jacobian) is the same norm.
+    std::vector<double> r1(6), r2(6);
+    ASSERT_TRUE(streamed.Evaluate(p, r1.data(), nullptr));
+    ASSERT_TRUE(whole.Evaluate(p, r2.data(), nullptr));
+    EXPECT_EQ(r1, r2);
   }
 }
 
