@@ -175,7 +175,7 @@ class StructuredSlipCost final : public ceres::CostFunction, public detail::RowS
     using std::exp;
     const ExtendedCost& f = *functor_;
     const Record& r = *f.record;
-    const std::size_t m = f.operators, n = r.size(), e = pieces(), l = lag();
+    const std::size_t m = f.operators, e = pieces(), l = lag();
     const std::size_t cols = 2 * m + e, states = m + l;
     ExtensionParameters<JF> ext = f.pieces.template cast<JF>([](double v) { return JF(v); });
     std::size_t j = 0;
@@ -189,8 +189,6 @@ class StructuredSlipCost final : public ceres::CostFunction, public detail::RowS
       out.v.template head<NF>() = v.v;
       return out;
     };
-    thread_local std::vector<JF> x;
-    x.resize(n);
     std::vector<double> theta_row(cols), state_row(states);
     const double* rows[2] = {requested[0] ? theta_row.data() : nullptr,
                              requested[1] ? state_row.data() : nullptr};
@@ -209,9 +207,8 @@ class StructuredSlipCost final : public ceres::CostFunction, public detail::RowS
       if (l) pieces_only.set_initial_lag_offset(JF(p[1][m], static_cast<int>(e)));
       const JF af = pieces_only.asymmetry();
       a = lift(af);
-      for (std::size_t k = 0; k < n; ++k) x[k] = JF(r.displacement[k]);
       for_each_extended_step(
-          pieces_only, std::span<const double>(r.time), std::span<const JF>(x),
+          pieces_only, std::span<const double>(r.time), std::span<const double>(r.displacement),
           std::span<const double>(r.normal), &f.windows,
           [&](std::size_t k, const ExtendedMotion<JF>& c, const JF& added) {
             const JF& level = pieces_only.level();

@@ -1,11 +1,15 @@
 // The extension pieces of methods.md section 7 around the base models.
 #include <gtest/gtest.h>
 
+#include <ceres/jet.h>
+
 #include <Eigen/QR>
 
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "friction/dnlrx.hpp"
@@ -587,6 +591,101 @@ TEST(ExtendedSlipFit, StructuredJacobianIsTheWholeModels) {
       }
     }
   }
+}
+
+// The stepping streams the record through a ring a few windows long (extensions.hpp,
+// for_each_extended_step); every motion it hands over must be the one the whole-record arithmetic
+// gives: the shifted displacement of delayed_displacement, its increments and turns on the whole
+// vector, the pieces' velocity and acceleration filtered over the whole (delayed, measured)
+// record.  Bit for bit, on irregular time stamps, with windows as wide as the record, a delay
+// with and without derivatives, a measured displacement beside the model's, a record of Jets and
+// one of doubles, and the second pass over the same record (which reuses the first's filter).
+template <typename T>
+void expect_streamed_motions(const std::vector<double>& time, const std::vector<T>& x,
+                             const std::vector<double>& measured,
+                             const friction::DerivativeWindows& w, const T& delay,
+                             const std::string& what) {
+  const std::size_t n = x.size();
+  const std::size_t edge = friction::delay_edge_length(w);
+  const std::vector<T> xs =
+      friction::delayed_displacement(std::span<const double>(time), std::span<const T>(x), delay,
+                                     edge);
+  std::vector<T> source(n);
+  for (std::size_t k = 0; k < n; ++k) source[k] = measured.empty() ? x[k] : T(measured[k]);
+  const std::vector<T> ds = friction::delayed_displacement(
+      std::span<const double>(time), std::span<const T>(source), delay, edge);
+  std::vector<T> v(n), a(n);
+  friction::apply_local_derivatives<T>(std::span<const double>(time), std::span<const T>(ds), w,
+                                       std::span<T>(v), std::span<T>(a));
+  auto same = [](const T& p, const T& q) {
+    if constexpr (std::is_same_v<T, double>) {
+      return p == q;
+    } else {
+      return p.a == q.a && p.v == q.v;
+    }
+  };
+  ExtensionParameters<T> p;
+  p.delay = {{delay}};
+  p.viscous = {{T(10.0)}};
+  MaxwellSlipParameters<T> base;
+  base.stiffness = {T(4e4), T(1e4)};
+  base.threshold = {T(2e-6), T(3e-5)};
+  for (int pass = 0; pass < 2; ++pass) {
+    Extended<MaxwellSlip<T>> model(MaxwellSlip<T>(base), p);
+    std::size_t visited = 0, wrong = 0;
+    friction::for_each_extended_step(
+        model, std::span<const double>(time), std::span<const T>(x),
+        std::span<const double>(), &w,
+        [&](std::size_t k, const friction::ExtendedMotion<T>& c, const T&) {
+          ++visited;
+          const T dx = k > 0 ? T(xs[k] - xs[k - 1]) : T(0);
+          const T turn = friction::turn_increment(std::span<const T>(xs), k);
+          if (!same(c.x, xs[k]) || !same(c.dx, dx) || !same(c.turn, turn) ||
+              !same(c.piece_velocity, v[k]) || !same(c.acceleration, a[k])) {
+            if (wrong++ == 0)
+              ADD_FAILURE() << what << ", pass " << pass << ": the first motion differing is "
+                            << k << " of " << n;
+          }
+        },
+        std::span<const double>(measured));
+    EXPECT_EQ(visited, n) << what;
+    EXPECT_EQ(wrong, 0u) << what << ", pass " << pass;
+  }
+}
+
+TEST(Extensions, StreamedSteppingHandsOverTheWholeRecordsMotions) {
+  std::vector<double> time, x;
+  friction::testing::test_excitation(3000, 1e-3, 20e-6, time, x);
+  // Irregular stamps (a jitter of 1e-4 Ts on every seventh sample: those windows are solved on
+  // their own) and a measured displacement that is not the model's (an encoder of 5 nm).
+  for (std::size_t k = 0; k < time.size(); k += 7) time[k] += 1e-7;
+  std::vector<double> measured(x.size());
+  for (std::size_t k = 0; k < x.size(); ++k) measured[k] = 5e-9 * std::round(x[k] / 5e-9);
+  const friction::DerivativeWindows chosen = friction::record_derivative_windows(time, measured);
+  friction::DerivativeWindows wide = chosen;
+  wide.velocity_half_width = 40, wide.velocity_degree = 4;
+  wide.acceleration_half_width = 75, wide.acceleration_degree = 2;
+  for (const auto& [w, name] : {std::pair{chosen, "the record's windows"},
+                                std::pair{wide, "windows of 81 and 151 samples"}}) {
+    const std::string what(name);
+    expect_streamed_motions<double>(time, x, {}, w, 0.0, what + ", no delay");
+    expect_streamed_motions<double>(time, x, measured, w, 0.0, what + ", measured, no delay");
+    expect_streamed_motions<double>(time, x, measured, w, 2.3e-3,
+                                    what + ", measured, delay 2.3 samples");
+    expect_streamed_motions<double>(time, x, {}, w, -1.6e-3, what + ", delay -1.6 samples");
+    using J = ceres::Jet<double, 2>;
+    std::vector<J> xj(x.size());
+    for (std::size_t k = 0; k < x.size(); ++k) xj[k] = J(x[k]);
+    expect_streamed_motions<J>(time, xj, measured, w, J(2.3e-3, 0),
+                               what + ", Jets, measured, a delay with a derivative");
+    expect_streamed_motions<J>(time, xj, {}, w, J(0.0, 1),
+                               what + ", Jets, a delay of 0 with a derivative");
+    expect_streamed_motions<J>(time, xj, {}, w, J(0.0), what + ", Jets, no delay");
+  }
+  // A record shorter than the windows: they span it whole.
+  std::vector<double> short_time(time.begin(), time.begin() + 40),
+      short_x(x.begin(), x.begin() + 40);
+  expect_streamed_motions<double>(short_time, short_x, {}, wide, 1.2e-3, "40 samples, wide");
 }
 
 }  // namespace

@@ -72,20 +72,18 @@ struct ExtensionEstimate {
 
 /// Residuals (F - Fhat) * scale of `model`'s free run on the record, from the state the model
 /// holds: the loop of every extension cost functor (Maxwell Slip here, the other bases in
-/// extension_identification.cpp).  The displacement buffers are reused between evaluations (per
-/// thread and scalar type), so an evaluation does not allocate.
+/// extension_identification.cpp).  The record is streamed (for_each_extended_step): nothing of
+/// its length is allocated but `residual`.
 template <class Model, typename T>
 void extended_residuals(Model& model, const Record& r, double scale, T* residual,
                         const DerivativeWindows& windows) {
-  const std::size_t n = r.size();
-  thread_local std::vector<T> x, f;
-  x.resize(n);
-  f.resize(n);
-  for (std::size_t k = 0; k < n; ++k) x[k] = T(r.displacement[k]);
-  simulate_extended(model, std::span<const double>(r.time), std::span<const T>(x),
-                    std::span<const double>(r.normal), std::span<T>(f), &windows,
-                    std::span<const double>(r.measured_displacement));
-  for (std::size_t k = 0; k < n; ++k) residual[k] = (T(r.force[k]) - f[k]) * scale;
+  for_each_extended_step(
+      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
+      std::span<const double>(r.normal), &windows,
+      [&](std::size_t k, const auto&, const T& force) {
+        residual[k] = (T(r.force[k]) - force) * scale;
+      },
+      std::span<const double>(r.measured_displacement));
 }
 
 /// Free run of an extended Maxwell Slip model in double, with the regime of every sample (the

@@ -97,12 +97,14 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <limits>
 #include <optional>
 #include <span>
 #include <string_view>
+#include <type_traits>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -664,23 +666,33 @@ class Extended {
 /// normal-load piece), force [N] written to `force`.  Delay by interpolation, the pieces' velocity
 /// and acceleration at the sample instants by the record's derivative windows (computed here when
 /// `windows` is null), as the header comment says.
+namespace detail {
+/// interpolate_displacement on samples given by `x(i)` of a record of n samples.
+template <typename T, class Sample>
+T interpolate_displacement_at(std::span<const double> time, const Sample& x, std::size_t n,
+                           std::size_t j, const T& target) {
+  if (j == 0 || j + 2 >= n) {
+    const T w = (target - time[j]) / (time[j + 1] - time[j]);
+    return x(j) + (x(j + 1) - x(j)) * w;
+  }
+  // Lagrange weights of the samples j-1 .. j+2 at the target time.
+  const double t0 = time[j - 1], t1 = time[j], t2 = time[j + 1], t3 = time[j + 2];
+  const T d0 = target - t0, d1 = target - t1, d2 = target - t2, d3 = target - t3;
+  return x(j - 1) * (d1 * d2 * d3 / ((t0 - t1) * (t0 - t2) * (t0 - t3))) +
+         x(j) * (d0 * d2 * d3 / ((t1 - t0) * (t1 - t2) * (t1 - t3))) +
+         x(j + 1) * (d0 * d1 * d3 / ((t2 - t0) * (t2 - t1) * (t2 - t3))) +
+         x(j + 2) * (d0 * d1 * d2 / ((t3 - t0) * (t3 - t1) * (t3 - t2)));
+}
+}  // namespace detail
+
 /// The displacement at `target`, time[j] <= target < time[j + 1] (j + 1 < x.size()): the cubic
 /// through samples j-1 .. j+2, linear in the first and last interval (delayed_displacement_into
 /// says why cubic).
 template <typename T>
 T interpolate_displacement(std::span<const double> time, std::span<const T> x, std::size_t j,
                            const T& target) {
-  if (j == 0 || j + 2 >= x.size()) {
-    const T w = (target - time[j]) / (time[j + 1] - time[j]);
-    return x[j] + (x[j + 1] - x[j]) * w;
-  }
-  // Lagrange weights of the samples j-1 .. j+2 at the target time.
-  const double t0 = time[j - 1], t1 = time[j], t2 = time[j + 1], t3 = time[j + 2];
-  const T d0 = target - t0, d1 = target - t1, d2 = target - t2, d3 = target - t3;
-  return x[j - 1] * (d1 * d2 * d3 / ((t0 - t1) * (t0 - t2) * (t0 - t3))) +
-         x[j] * (d0 * d2 * d3 / ((t1 - t0) * (t1 - t2) * (t1 - t3))) +
-         x[j + 1] * (d0 * d1 * d3 / ((t2 - t0) * (t2 - t1) * (t2 - t3))) +
-         x[j + 2] * (d0 * d1 * d2 / ((t3 - t0) * (t3 - t1) * (t3 - t2)));
+  return detail::interpolate_displacement_at<T>(
+      time, [&](std::size_t i) -> const T& { return x[i]; }, x.size(), j, target);
 }
 
 /// The quadratic through the edge sample of a record (`front` or back) whose slope and curvature
@@ -731,6 +743,53 @@ EdgePolynomial edge_polynomial(std::span<const double> time, std::span<const T> 
   return p;
 }
 
+/// delayed_displacement_into one sample at a time, k = 0, 1, ... in order (what a record
+/// streamed through a short buffer uses).  `X`: the scalar of the displacement given (double, or
+/// T itself); its samples become T where they are used.
+template <typename T, typename X = T>
+class DelayedDisplacement {
+ public:
+  DelayedDisplacement(std::span<const double> time, std::span<const X> x, const T& delay,
+                      std::size_t edge_length)
+      : time_(time), x_(x), delay_(delay), edge_length_(edge_length),
+        // A delay of exactly 0 that carries derivatives still needs them (d x(t - D) / dD = -v):
+        // a fit started at D = 0 saw a zero gradient and never left it (36 times the floor on a
+        // record with D = 0.3 samples).
+        shifted_(!(value_of(delay) == 0.0 && !has_derivative(delay))) {}
+
+  /// Whether the displacement is shifted at all (false: x itself).
+  bool shifted() const { return shifted_; }
+
+  T at(std::size_t k) {
+    if (!shifted_) return T(x_[k]);
+    const std::size_t n = x_.size();
+    const T target = T(time_[k]) - delay_;
+    const double tv = value_of(target);
+    if (tv <= time_.front()) {
+      if (edge_length_ == 0) return T(x_.front());
+      if (!first_) first_ = edge_polynomial(time_, x_, true, edge_length_);
+      return first_->at(target);
+    }
+    if (tv >= time_.back()) {
+      if (edge_length_ == 0) return T(x_.back());
+      if (!last_) last_ = edge_polynomial(time_, x_, false, edge_length_);
+      return last_->at(target);
+    }
+    while (j_ + 1 < n && time_[j_ + 1] <= tv) ++j_;  // time[j] <= target < time[j + 1]
+    return detail::interpolate_displacement_at<T>(
+        time_, [&](std::size_t i) { return T(x_[i]); }, n, j_, target);
+  }
+
+ private:
+  std::span<const double> time_;
+  std::span<const X> x_;
+  T delay_;
+  std::size_t edge_length_;
+  bool shifted_;
+  std::optional<EdgePolynomial> first_, last_;
+  std::size_t j_ = 0;  // targets increase with k
+};
+
 /// The displacement at t_k - D, interpolated by the cubic through the four samples around it
 /// (linearly in the first and last interval), and outside the record extrapolated by the quadratic
 /// through the edge sample fitted to the `edge_length` samples there (header: Delay); x itself
@@ -747,35 +806,13 @@ template <typename T>
 void delayed_displacement_into(std::span<const double> time, std::span<const T> x, const T& delay,
                                std::vector<T>& xs, std::size_t edge_length = 0) {
   const std::size_t n = x.size();
-  xs.assign(x.begin(), x.end());
-  // A delay of exactly 0 that carries derivatives still needs them (d x(t - D) / dD = -v): a fit
-  // started at D = 0 saw a zero gradient and never left it (36 times the floor on a record with
-  // D = 0.3 samples).
-  if (value_of(delay) == 0.0 && !has_derivative(delay)) return;
-  std::optional<EdgePolynomial> first, last;
-  std::size_t j = 0;  // time[j] <= target < time[j + 1]; targets increase with k
-  for (std::size_t k = 0; k < n; ++k) {
-    const T target = T(time[k]) - delay;
-    const double tv = value_of(target);
-    if (tv <= time.front()) {
-      if (edge_length == 0) {
-        xs[k] = x.front();
-        continue;
-      }
-      if (!first) first = edge_polynomial(time, x, true, edge_length);
-      xs[k] = first->at(target);
-    } else if (tv >= time.back()) {
-      if (edge_length == 0) {
-        xs[k] = x.back();
-        continue;
-      }
-      if (!last) last = edge_polynomial(time, x, false, edge_length);
-      xs[k] = last->at(target);
-    } else {
-      while (j + 1 < n && time[j + 1] <= tv) ++j;
-      xs[k] = interpolate_displacement(time, x, j, target);
-    }
+  DelayedDisplacement<T> shifted(time, x, delay, edge_length);
+  if (!shifted.shifted()) {
+    xs.assign(x.begin(), x.end());
+    return;
   }
+  xs.resize(n);
+  for (std::size_t k = 0; k < n; ++k) xs[k] = shifted.at(k);
 }
 
 template <typename T>
@@ -797,6 +834,24 @@ inline std::size_t delay_edge_length(const DerivativeWindows& w) {
   return 2 * w.velocity_half_width + 1;
 }
 
+namespace detail {
+/// The velocity and acceleration filtered from the last undelayed displacement that
+/// for_each_extended_step stepped through on this thread, with the time and displacement they
+/// came from: a fit simulates the same record with the same displacement at every evaluation, and
+/// filtering it anew cost a fourteenth of a diagnosis.  One per thread for every scalar type (the
+/// numbers are doubles): 32 bytes per sample.
+struct FilteredDisplacement {
+  std::vector<double> time, x, velocity, acceleration;
+  DerivativeWindows windows;
+  bool valid = false;
+  bool busy = false;  // a step is filling or reading it (a visitor that stepped again would not)
+};
+inline FilteredDisplacement& filtered_displacement() {
+  thread_local FilteredDisplacement cache;
+  return cache;
+}
+}  // namespace detail
+
 /// Steps an extended model over a record, calling visit(k, context, force) after every sample
 /// (the model's state, e.g. its base's deflections and its lagged velocity, is that of sample k
 /// then).  What simulate_extended does; the profiles of extension_profile.cpp read the operators'
@@ -804,12 +859,20 @@ inline std::size_t delay_edge_length(const DerivativeWindows& w) {
 /// displacement as measured when `x` is its estimate (Record::measured_displacement; empty
 /// otherwise): the pieces' velocity and acceleration come from it, with the windows chosen on it,
 /// and the model's displacement from `x` (sample_derivatives.hpp, "The displacement the models
-/// see").
-template <class Base, typename T, class Visit>
+/// see").  `x` may be given in double for a model on Jets (its samples become Jets where used).
+///
+/// The record is streamed: the shifted displacement is made a sample at a time, a few windows
+/// ahead of the sample stepped, into a ring of a few windows' length, so that nothing of the
+/// record's length is allocated per call (a fit of 10^6 samples on ceres::Jet<double, 16> kept
+/// five record-long buffers of 136 bytes a sample per thread and scalar type).
+template <class Base, typename X, class Visit>
 void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
-                            std::span<const T> x, std::span<const double> normal,
+                            std::span<const X> x, std::span<const double> normal,
                             const DerivativeWindows* windows, Visit&& visit,
                             std::span<const double> measured = {}) {
+  using T = typename Base::Scalar;
+  static_assert(std::is_same_v<X, T> || std::is_same_v<X, double>,
+                "for_each_extended_step: the displacement is in the model's scalar or in double");
   const std::size_t n = x.size();
   FRICTION_CHECK(time.size() == n, "simulate_extended: time and displacement differ in length");
   FRICTION_CHECK(normal.empty() || normal.size() == n,
@@ -817,13 +880,9 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
   const auto& p = model.extensions();
   FRICTION_CHECK(!p.normal_load || !normal.empty(),
                  "simulate_extended: the normal-load extension needs a normal force record");
-  if (n == 0) return;
-  // Buffers reused per thread and scalar type: a fit simulates the same record hundreds of times,
-  // and three fresh vectors of Jets per run (4 MB at 10k samples) cost a sixth of a diagnosis in
-  // page faults.  The visitors never step another model on the same thread.
-  thread_local std::vector<T> xs, v, a, measured_t, ms;
   FRICTION_CHECK(measured.empty() || measured.size() == n,
                  "simulate_extended: the measured displacement must be empty or as long as x");
+  if (n == 0) return;
   // The pieces' velocity and acceleration at the sample instants (header: Differentiators), with
   // the record's windows; the base's interval velocity dx/dt.
   DerivativeWindows own;
@@ -834,63 +893,130 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
     windows = &own;
   }
   const T delay = p.delay ? p.delay->delay : T(0);
-  delayed_displacement_into(time, x, delay, xs, delay_edge_length(*windows));
-  const std::vector<T>* ds = &xs;  // what the derivatives are taken of
-  if (!measured.empty()) {
-    measured_t.resize(n);
-    for (std::size_t k = 0; k < n; ++k) measured_t[k] = T(measured[k]);
-    delayed_displacement_into(time, std::span<const T>(measured_t), delay, ms,
-                              delay_edge_length(*windows));
-    ds = &ms;
-  }
-  v.assign(n, T(0));
-  a.assign(n, T(0));
+  const std::size_t edge = delay_edge_length(*windows);
+  DelayedDisplacement<T, X> shifted_x(time, x, delay, edge);  // what the model moves by
+  std::optional<DelayedDisplacement<T, double>> shifted_measured;  // what is differentiated
+  if (!measured.empty()) shifted_measured.emplace(time, measured, delay, edge);
+  const bool shifted = shifted_x.shifted();
   // A displacement without derivative parts (every fit but a delay's) is filtered as doubles:
   // the same numbers at a sixteenth of a Jet<16>'s cost, which was a fifth of a diagnosis.
-  // A fit simulates the same record with the same displacement at every evaluation: the filtered
-  // signals of the last call on this thread are reused when time, displacement and windows are
-  // equal to the last element (the filter was a fourteenth of a diagnosis).
-  if (std::none_of(ds->begin(), ds->end(), [](const T& s) { return has_derivative(s); })) {
-    thread_local std::vector<double> td, xd, vd, ad;
-    thread_local DerivativeWindows wd;
-    thread_local bool valid = false;  // false while (or after) the filter throws
-    bool same = valid && td.size() == n && wd == *windows;
-    td.resize(n), xd.resize(n);
+  bool jets = shifted && has_derivative(delay);
+  if constexpr (!std::is_same_v<X, double>)
+    if (measured.empty())
+      jets = jets || std::any_of(x.begin(), x.end(), [](const X& s) { return has_derivative(s); });
+  // The undelayed displacement's filter is reused from the last call on this thread when time,
+  // displacement and windows are equal to the last element.
+  detail::FilteredDisplacement* cache = nullptr;
+  bool cached = false;
+  struct Release {
+    detail::FilteredDisplacement* c = nullptr;
+    ~Release() {
+      if (c) c->busy = false;
+    }
+  } release;
+  if (!jets && !shifted && !detail::filtered_displacement().busy) {
+    cache = release.c = &detail::filtered_displacement();
+    cache->busy = true;
+    cached = cache->valid && cache->time.size() == n && cache->windows == *windows;
+    cache->time.resize(n), cache->x.resize(n);
     for (std::size_t k = 0; k < n; ++k) {
-      const double xk = value_of((*ds)[k]);
-      same = same && td[k] == time[k] && xd[k] == xk;
-      td[k] = time[k];
-      xd[k] = xk;
+      const double xk = measured.empty() ? value_of(x[k]) : measured[k];
+      cached = cached && cache->time[k] == time[k] && cache->x[k] == xk;
+      cache->time[k] = time[k];
+      cache->x[k] = xk;
     }
-    if (!same) {
-      valid = false;
-      vd.resize(n), ad.resize(n);
-      apply_local_derivatives<double>(time, xd, *windows, vd, ad);
-      wd = *windows;
-      valid = true;
+    if (!cached) {
+      cache->valid = false;  // until every sample is filtered
+      cache->velocity.resize(n), cache->acceleration.resize(n);
     }
-    for (std::size_t k = 0; k < n; ++k) v[k] = T(vd[k]), a[k] = T(ad[k]);
-  } else {
-    apply_local_derivatives<T>(time, std::span<const T>(*ds), *windows, std::span<T>(v),
-                               std::span<T>(a));
   }
-  for (std::size_t k = 0; k < n; ++k) {
-    ExtendedMotion<T> c;
-    c.x = xs[k];
-    c.dx = k > 0 ? T(xs[k] - xs[k - 1]) : T(0);
-    c.turn = turn_increment(std::span<const T>(xs), k);
-    c.velocity = k > 0 ? T(c.dx / (time[k] - time[k - 1])) : T(0);
-    c.piece_velocity = v[k];
-    c.piece_velocity_at_instant = true;
-    c.acceleration = a[k];
-    c.dt = k > 0 ? T(time[k] - time[k - 1]) : T(0);
-    c.time = time[k] - time.front();
-    if (!normal.empty()) {
-      c.normal = T(normal[k]);
-      c.has_normal = true;
+  LocalPolynomialWeights velocity_weights(time, *windows, 1),
+      acceleration_weights(time, *windows, 2);
+  // Sample k reads the shifted displacement at k - 2 .. k + 1 (increment, turn) and its windows
+  // at most 2m on either side (windows at the record's ends are shifted inside it).
+  const std::size_t reach =
+      std::max({velocity_weights.reach(), acceleration_weights.reach(), std::size_t{2}});
+  const std::size_t ring = std::bit_ceil(2 * reach + 4), mask = ring - 1;
+  // Rings reused per thread and scalar type: a fit simulates the same record hundreds of times.
+  thread_local std::vector<T> xs, ds;
+  thread_local std::vector<double> dd;
+  xs.resize(std::max(xs.size(), ring));
+  if (jets) ds.resize(std::max(ds.size(), ring));
+  if (!jets && !cached) dd.resize(std::max(dd.size(), ring));
+  std::size_t produced = 0;
+  auto produce = [&](std::size_t upto) {
+    for (; produced < upto; ++produced) {
+      const std::size_t i = produced & mask;
+      xs[i] = shifted_x.at(produced);
+      if (jets) {
+        ds[i] = shifted_measured ? shifted_measured->at(produced) : xs[i];
+      } else if (!cached) {
+        dd[i] = shifted_measured ? value_of(shifted_measured->at(produced)) : value_of(xs[i]);
+      }
     }
-    const T force = model.step_shifted(c);
-    visit(k, c, force);
+  };
+  // sum_i w_i (x_i - x_k) over sample k's window (sample_derivatives.hpp).
+  auto filtered = [&](LocalPolynomialWeights& weights, const auto& values, std::size_t k) {
+    using V = std::decay_t<decltype(values[0])>;
+    if (weights.trivial()) return V(0);
+    std::size_t lo = 0;
+    const double* w = weights.at(k, lo);
+    V sum = V(0);
+    for (std::size_t i = lo; i < lo + weights.width(); ++i)
+      sum += w[i - lo] * (values[i & mask] - values[k & mask]);
+    return sum;
+  };
+  // Unshifted and filtered before (every evaluation of a fit but a delay's after the first): the
+  // samples are read where they are, and nothing is made ahead.
+  const bool direct = !shifted && cached;
+  auto step_all = [&](const auto& xs_at) {
+    for (std::size_t k = 0; k < n; ++k) {
+      if (!direct) produce(std::min(n, k + reach + 2));
+      T velocity(0), acceleration(0);
+      if (cached) {
+        velocity = T(cache->velocity[k]);
+        acceleration = T(cache->acceleration[k]);
+      } else if (jets) {
+        velocity = filtered(velocity_weights, ds, k);
+        acceleration = filtered(acceleration_weights, ds, k);
+      } else {
+        const double vk = filtered(velocity_weights, dd, k);
+        const double ak = filtered(acceleration_weights, dd, k);
+        if (cache) cache->velocity[k] = vk, cache->acceleration[k] = ak;
+        velocity = T(vk);
+        acceleration = T(ak);
+      }
+      ExtendedMotion<T> c;
+      c.x = xs_at(k);
+      c.dx = k > 0 ? T(xs_at(k) - xs_at(k - 1)) : T(0);
+      c.turn = detail::turn_increment_at<T>(xs_at, n, k);
+      c.velocity = k > 0 ? T(c.dx / (time[k] - time[k - 1])) : T(0);
+      c.piece_velocity = velocity;
+      c.piece_velocity_at_instant = true;
+      c.acceleration = acceleration;
+      c.dt = k > 0 ? T(time[k] - time[k - 1]) : T(0);
+      c.time = time[k] - time.front();
+      if (!normal.empty()) {
+        c.normal = T(normal[k]);
+        c.has_normal = true;
+      }
+      const T force = model.step_shifted(c);
+      visit(k, c, force);
+    }
+  };
+  if (direct) {
+    step_all([&](std::size_t i) -> decltype(auto) {
+      if constexpr (std::is_same_v<X, T>)
+        return (x[i]);
+      else
+        return T(x[i]);
+    });
+  } else {
+    step_all([&](std::size_t i) -> const T& { return xs[i & mask]; });
+  }
+  if (cache && !cached) {
+    cache->windows = *windows;
+    cache->valid = true;
   }
 }
 

@@ -74,29 +74,41 @@ struct Motion {
 namespace detail {
 /// At a reversal at sample i (the increments on either side of x_i of opposite sign): the vertex
 /// of the parabola through x_{i-1}, x_i, x_{i+1}, its offset u from i in samples (|u| < 1/2) and
-/// its value.  False when sample i is no reversal.
-template <typename T>
-bool reversal_vertex(std::span<const T> x, std::size_t i, double& u, T& peak) {
-  if (i == 0 || i + 1 >= x.size()) return false;
-  const T d1 = x[i] - x[i - 1], d2 = x[i + 1] - x[i];
-  if (!(value_of(d1) * value_of(d2) < 0.0)) return false;
+/// its value.  False when sample i is no reversal.  `x(i)`: sample i of a record of n samples.
+template <typename T, class Sample>
+bool reversal_vertex(const Sample& x, std::size_t n, std::size_t i, double& u, T& peak) {
+  if (i == 0 || i + 1 >= n) return false;
+  // The test on the values first: most samples are no reversal, and a Jet's difference is its
+  // values' difference.
+  const double before = value_of(x(i)) - value_of(x(i - 1));
+  const double after = value_of(x(i + 1)) - value_of(x(i));
+  if (!(before * after < 0.0)) return false;
+  const T d1 = x(i) - x(i - 1), d2 = x(i + 1) - x(i);
   const T a = (d2 - d1) * 0.5, b = (d2 + d1) * 0.5;  // x(i + u) = x_i + b u + a u^2
   u = -value_of(b) / (2.0 * value_of(a));
-  peak = x[i] - b * b / (a * 4.0);
+  peak = x(i) - b * b / (a * 4.0);
   return true;
+}
+
+/// turn_increment on samples given by `x(i)` (samples k - 2 .. k + 1 are read): what a record
+/// streamed through a short buffer uses.
+template <typename T, class Sample>
+T turn_increment_at(const Sample& x, std::size_t n, std::size_t k) {
+  if (k == 0 || k >= n) return T(0);
+  double u_here = 0.0, u_before = 0.0;
+  T at_here(0), at_before(0);
+  const bool here = reversal_vertex<T>(x, n, k, u_here, at_here) && u_here < 0.0;
+  const bool before = reversal_vertex<T>(x, n, k - 1, u_before, at_before) && u_before > 0.0;
+  if (here == before) return T(0);
+  return (here ? at_here : at_before) - x(k - 1);
 }
 }  // namespace detail
 
 /// Motion::turn of the interval (t_{k-1}, t_k] of displacement x (header: Turns between samples).
 template <typename T>
 T turn_increment(std::span<const T> x, std::size_t k) {
-  if (k == 0 || k >= x.size()) return T(0);
-  double u_here = 0.0, u_before = 0.0;
-  T at_here(0), at_before(0);
-  const bool here = detail::reversal_vertex(x, k, u_here, at_here) && u_here < 0.0;
-  const bool before = detail::reversal_vertex(x, k - 1, u_before, at_before) && u_before > 0.0;
-  if (here == before) return T(0);
-  return (here ? at_here : at_before) - x[k - 1];
+  return detail::turn_increment_at<T>([&](std::size_t i) -> const T& { return x[i]; }, x.size(),
+                                      k);
 }
 
 /// The Motion of sample k of a record (displacement x at `time`), with slip-force level `level`:

@@ -166,99 +166,138 @@ void local_polynomial_derivatives(std::span<const double> time, std::span<const 
 /// v and a at every sample, windows by the rule.
 SampleDerivatives sample_derivatives(std::span<const double> time, std::span<const double> x);
 
-/// The local polynomial fits as linear filters on any scalar: the weights come from the sample
-/// times alone (each window's normal equations), so a displacement of ceres::Jet (a delay's
-/// shifted record) carries its derivatives through.  Powers are of (t_i - t_k) / (Ts h), h the
-/// half width, so that the normal equations stay well conditioned for long windows.
-template <typename T>
-void apply_local_polynomials(std::span<const double> time, std::span<const T> x,
-                             const DerivativeWindows& w, std::span<T> displacement,
-                             std::span<T> velocity, std::span<T> acceleration) {
-  const std::size_t n = x.size();
-  const double ts = w.sampling_period > 0 ? w.sampling_period : 1.0;
-  // r_i = t_i - t_0 - i Ts: the departure of each time stamp from a regular grid.
-  std::vector<double> r(n);
-  for (std::size_t i = 0; i < n; ++i) r[i] = time[i] - time[0] - static_cast<double>(i) * ts;
-  for (int order = 0; order <= 2; ++order) {
-    std::span<T> out = order == 0 ? displacement : order == 1 ? velocity : acceleration;
-    if (out.empty()) continue;
-    const std::size_t m = order == 0   ? w.displacement_half_width
-                          : order == 1 ? w.velocity_half_width
-                                       : w.acceleration_half_width;
+/// The weights of one local polynomial fit (the displacement's, order 0; the velocity's, 1; the
+/// acceleration's, 2) at the samples of a record, visited in increasing order: the window of
+/// sample k starts at `lo` and its weights w give the estimate as sum_i w_i (x_{lo+i} - x_k)
+/// (plus x_k for the value).  The weights come from the sample times alone (each window's normal
+/// equations), so the same filter serves any scalar (a delay's shifted record of ceres::Jet
+/// carries its derivatives through) and a record streamed sample by sample.  Powers are of
+/// (t_i - t_k) / (Ts h), h the half width, so that the normal equations stay well conditioned for
+/// long windows.
+class LocalPolynomialWeights {
+ public:
+  LocalPolynomialWeights(std::span<const double> time, const DerivativeWindows& w, int order)
+      : time_(time), order_(order) {
+    n_ = time.size();
+    ts_ = w.sampling_period > 0 ? w.sampling_period : 1.0;
+    m_ = order == 0 ? w.displacement_half_width
+         : order == 1 ? w.velocity_half_width
+                      : w.acceleration_half_width;
     const std::size_t degree = order == 0   ? w.displacement_degree
                                : order == 1 ? w.velocity_degree
                                             : w.acceleration_degree;
     FRICTION_CHECK(degree == 2 || degree == 4, "sample derivatives: degree ", degree,
                    " (2 or 4 expected)");
-    const std::size_t width = std::min(2 * m + 1, n);
-    if (width < degree + 1) {  // too few samples for the polynomial: nothing to differentiate
+    width_ = std::min(2 * m_ + 1, n_);
+    trivial_ = width_ < degree + 1;
+    scale_ = ts_ * static_cast<double>(std::max<std::size_t>(m_, 1));
+    factor_ = order == 0   ? 1.0
+              : order == 1 ? w.velocity_regression_factor / scale_
+                           : 2 * w.acceleration_regression_factor / (scale_ * scale_);
+    p_ = static_cast<int>(degree);
+    weights_.resize(width_);
+  }
+
+  /// Too few samples for the polynomial: nothing to differentiate (the value is x_k, the
+  /// derivatives 0).
+  bool trivial() const { return trivial_; }
+  std::size_t width() const { return width_; }
+  /// The samples a window reaches on either side of its own: 2m (windows at the record's edges
+  /// are shifted inside it).
+  std::size_t reach() const { return width_ > 0 ? width_ - 1 : 0; }
+
+  /// The weights of sample k's window (k not below the last call's), `lo` its first sample.
+  const double* at(std::size_t k, std::size_t& lo) {
+    lo = k >= m_ ? k - m_ : 0;
+    if (lo + width_ > n_) lo = n_ - width_;
+    // A window is uniform when every r_i in it lies within 1e-6 Ts of its centre's (r below):
+    // the window's largest and smallest r, kept over the sliding window by two monotone queues,
+    // so that the test costs O(1) per sample and not a pass over the window (which cost as much
+    // as the filter itself).  "Uniform" within 1e-6 Ts: time stamps written with a few
+    // significant digits jitter by 1e-8 Ts and more, and the derivative moves by about the
+    // relative jitter.
+    for (; next_ < lo + width_; ++next_) {
+      while (!largest_.empty() && r(largest_.back()) <= r(next_)) largest_.pop_back();
+      while (!smallest_.empty() && r(smallest_.back()) >= r(next_)) smallest_.pop_back();
+      largest_.push_back(next_);
+      smallest_.push_back(next_);
+    }
+    while (largest_.front() < lo) largest_.pop_front();
+    while (smallest_.front() < lo) smallest_.pop_front();
+    const bool uniform = lo + width_ / 2 == k && r(largest_.front()) - r(k) <= 1e-6 * ts_ &&
+                         r(k) - r(smallest_.front()) <= 1e-6 * ts_;
+    // The weights of a window of uniform spacing Ts centred on its sample: most windows of a
+    // regularly sampled record, computed once.
+    if (uniform) {
+      if (centred_.empty()) {
+        centred_.resize(width_);
+        solve(lo, k, centred_);
+      }
+      return centred_.data();
+    }
+    solve(lo, k, weights_);
+    return weights_.data();
+  }
+
+ private:
+  // r_i = t_i - t_0 - i Ts: the departure of each time stamp from a regular grid.
+  double r(std::size_t i) const {
+    return time_[i] - time_[0] - static_cast<double>(i) * ts_;
+  }
+
+  void solve(std::size_t lo, std::size_t k, std::vector<double>& out_w) const {
+    double moments[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+    for (std::size_t i = lo; i < lo + width_; ++i) {
+      const double tau = (time_[i] - time_[k]) / scale_;
+      double q = 1;
+      for (int j = 0; j <= 2 * p_; ++j) moments[j] += q, q *= tau;
+    }
+    Eigen::Matrix<double, 5, 5> g = Eigen::Matrix<double, 5, 5>::Identity();
+    for (int a = 0; a <= p_; ++a)
+      for (int b = 0; b <= p_; ++b) g(a, b) = moments[a + b];
+    Eigen::Matrix<double, 5, 1> e = Eigen::Matrix<double, 5, 1>::Zero();
+    e[order_] = 1;
+    const Eigen::Matrix<double, 5, 1> c = g.ldlt().solve(e);  // row `order` of G^-1
+    for (std::size_t i = lo; i < lo + width_; ++i) {
+      const double tau = (time_[i] - time_[k]) / scale_;
+      double q = 1, sum = 0;
+      for (int j = 0; j <= p_; ++j) sum += c[j] * q, q *= tau;
+      out_w[i - lo] = sum * factor_;
+    }
+  }
+
+  std::span<const double> time_;
+  int order_ = 0, p_ = 2;
+  std::size_t n_ = 0, m_ = 1, width_ = 0;
+  bool trivial_ = false;
+  double ts_ = 1, scale_ = 1, factor_ = 1;
+  std::vector<double> centred_, weights_;
+  std::deque<std::size_t> largest_, smallest_;  // indices into the current window, r monotone
+  std::size_t next_ = 0;                        // the first index not yet in the queues
+};
+
+/// The local polynomial fits as linear filters on any scalar (LocalPolynomialWeights).
+template <typename T>
+void apply_local_polynomials(std::span<const double> time, std::span<const T> x,
+                             const DerivativeWindows& w, std::span<T> displacement,
+                             std::span<T> velocity, std::span<T> acceleration) {
+  const std::size_t n = x.size();
+  FRICTION_CHECK(time.size() == n, "sample derivatives: time and displacement differ in length");
+  for (int order = 0; order <= 2; ++order) {
+    std::span<T> out = order == 0 ? displacement : order == 1 ? velocity : acceleration;
+    if (out.empty()) continue;
+    LocalPolynomialWeights filter(time, w, order);
+    if (filter.trivial()) {
       for (std::size_t k = 0; k < n; ++k) out[k] = order == 0 ? x[k] : T(0);
       continue;
     }
-    const double scale = ts * static_cast<double>(std::max<std::size_t>(m, 1));
-    const double factor = order == 0   ? 1.0
-                          : order == 1 ? w.velocity_regression_factor / scale
-                                       : 2 * w.acceleration_regression_factor / (scale * scale);
-    const int p = static_cast<int>(degree);
-    // The weights of a window of uniform spacing Ts centred on its sample: most windows of a
-    // regularly sampled record, computed once.  "Uniform" within 1e-6 Ts: time stamps written with
-    // a few significant digits jitter by 1e-8 Ts and more, and the derivative moves by about the
-    // relative jitter.
-    std::vector<double> centred, weights(width);
-    auto solve_weights = [&](std::size_t lo, std::size_t k, std::vector<double>& out_w) {
-      double moments[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-      for (std::size_t i = lo; i < lo + width; ++i) {
-        const double tau = (time[i] - time[k]) / scale;
-        double q = 1;
-        for (int j = 0; j <= 2 * p; ++j) moments[j] += q, q *= tau;
-      }
-      Eigen::Matrix<double, 5, 5> g = Eigen::Matrix<double, 5, 5>::Identity();
-      for (int a = 0; a <= p; ++a)
-        for (int b = 0; b <= p; ++b) g(a, b) = moments[a + b];
-      Eigen::Matrix<double, 5, 1> e = Eigen::Matrix<double, 5, 1>::Zero();
-      e[order] = 1;
-      const Eigen::Matrix<double, 5, 1> c = g.ldlt().solve(e);  // row `order` of G^-1
-      for (std::size_t i = lo; i < lo + width; ++i) {
-        const double tau = (time[i] - time[k]) / scale;
-        double q = 1, sum = 0;
-        for (int j = 0; j <= p; ++j) sum += c[j] * q, q *= tau;
-        out_w[i - lo] = sum * factor;
-      }
-    };
-    const std::size_t half = width / 2;
-    // A window is uniform when every r_i in it lies within 1e-6 Ts of its centre's (r above):
-    // the window's largest and smallest r, kept over the sliding window by two monotone queues,
-    // so that the test costs O(1) per sample and not a pass over the window (which cost as much
-    // as the filter itself).
-    std::deque<std::size_t> largest, smallest;  // indices into the current window, r monotone
-    std::size_t next = 0;                       // the first index not yet in the queues
     for (std::size_t k = 0; k < n; ++k) {
-      std::size_t lo = k >= m ? k - m : 0;
-      if (lo + width > n) lo = n - width;
-      for (; next < lo + width; ++next) {
-        while (!largest.empty() && r[largest.back()] <= r[next]) largest.pop_back();
-        while (!smallest.empty() && r[smallest.back()] >= r[next]) smallest.pop_back();
-        largest.push_back(next);
-        smallest.push_back(next);
-      }
-      while (largest.front() < lo) largest.pop_front();
-      while (smallest.front() < lo) smallest.pop_front();
-      const bool uniform = lo + half == k && r[largest.front()] - r[k] <= 1e-6 * ts &&
-                           r[k] - r[smallest.front()] <= 1e-6 * ts;
-      const std::vector<double>* wk = &weights;
-      if (uniform) {
-        if (centred.empty()) {
-          centred.resize(width);
-          solve_weights(lo, k, centred);
-        }
-        wk = &centred;
-      } else {
-        solve_weights(lo, k, weights);
-      }
+      std::size_t lo = 0;
+      const double* wk = filter.at(k, lo);
       // The value's weights sum to one and the derivatives' to zero: either way the sum over
       // x_i - x_k keeps the digits of a displacement far from the origin.
       T sum = order == 0 ? x[k] : T(0);
-      for (std::size_t i = lo; i < lo + width; ++i) sum += (*wk)[i - lo] * (x[i] - x[k]);
+      for (std::size_t i = lo; i < lo + filter.width(); ++i) sum += wk[i - lo] * (x[i] - x[k]);
       out[k] = sum;
     }
   }
