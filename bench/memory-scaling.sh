@@ -9,7 +9,8 @@
 #   identify --model maxwell-slip --operators 4      NLR with M = 4 fixed
 #   validate                                         the identified model on the validation record
 #   simulate                                         the same model's force on it, as CSV
-#   diagnose (N <= 100000 only: a diagnosis of 1M samples takes the better part of an hour)
+#   diagnose (N <= FRICTION_BENCH_DIAGNOSE_UP_TO only, default 100000: a diagnosis of 1M samples
+#             takes tens of minutes)
 # and prints wall seconds, peak RSS and RSS per sample.  Targets: identify, validate and simulate
 # <= 200 B/sample at 1M, diagnose <= 500.  Run it on an otherwise idle machine.
 set -euo pipefail
@@ -48,7 +49,7 @@ for n in "${sizes[@]}"; do
     --format json --out "$tmp/validation.json"
   measure "$n" simulate "$cli" simulate --model-file "$tmp/model.json" --data "$tmp/val.csv" \
     --out "$tmp/sim.csv"
-  if ((n <= 100000)); then
+  if ((n <= ${FRICTION_BENCH_DIAGNOSE_UP_TO:-100000})); then
     measure "$n" diagnose "$cli" diagnose --data "$tmp/est.csv" --validate "$tmp/val.csv" \
       --format json --out "$tmp/diagnose.json"
   fi

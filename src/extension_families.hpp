@@ -644,12 +644,17 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
       J(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(q)) =
           c < nt ? j0[k * nt + c] : j1[k * ns + (c - nt)];
     }
+  // One N x p matrix from here on (J, then scaled in place): at 10^6 samples each copy was 8 p
+  // bytes a sample, and the two Jacobian blocks, J and its scaled copy were the diagnosis's peak.
+  std::vector<double>().swap(j0);
+  std::vector<double>().swap(j1);
   if (!J.allFinite()) return out;
   // Columns scaled to unit norm (a column without any effect keeps scale 1 and stays zero).
   Eigen::VectorXd d = J.colwise().norm().transpose();
   for (Eigen::Index q = 0; q < d.size(); ++q)
     if (!(d(q) > 0)) d(q) = 1.0;
-  const Eigen::MatrixXd Js = J * d.cwiseInverse().asDiagonal();
+  J = J * d.cwiseInverse().asDiagonal();  // coefficient-wise: no aliasing
+  const Eigen::MatrixXd& Js = J;
   const Eigen::MatrixXd H = Js.transpose() * Js;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(H);
   const double emax = eig.eigenvalues().maxCoeff();
