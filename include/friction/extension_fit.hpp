@@ -73,7 +73,7 @@ struct ExtensionEstimate {
 /// Residuals (F - Fhat) * scale of `model`'s free run on the record, from the state the model
 /// holds: the loop of every extension cost functor (Maxwell Slip here, the other bases in
 /// extension_identification.cpp).  The record is streamed (for_each_extended_step): nothing of
-/// its length is allocated but `residual`.
+/// its length is allocated per evaluation (the filter's cache, one per thread, aside).
 template <class Model, typename T>
 void extended_residuals(Model& model, const Record& r, double scale, T* residual,
                         const DerivativeWindows& windows) {

@@ -661,11 +661,6 @@ class Extended {
   T delayed_x_{0};
 };
 
-/// Simulates an extended model on a record, from whatever state it is in (reset() it first):
-/// displacement `x` [m] at `time` [s], optional `normal` force [N] (empty: none; required by a
-/// normal-load piece), force [N] written to `force`.  Delay by interpolation, the pieces' velocity
-/// and acceleration at the sample instants by the record's derivative windows (computed here when
-/// `windows` is null), as the header comment says.
 namespace detail {
 /// interpolate_displacement on samples given by `x(i)` of a record of n samples.
 template <typename T, class Sample>
@@ -1020,6 +1015,11 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
   }
 }
 
+/// Simulates an extended model on a record, from whatever state it is in (reset() it first):
+/// displacement `x` [m] at `time` [s], optional `normal` force [N] (empty: none; required by a
+/// normal-load piece), force [N] written to `force`.  Delay by interpolation, the pieces' velocity
+/// and acceleration at the sample instants by the record's derivative windows (computed here when
+/// `windows` is null), as the header comment says.
 template <class Base, typename T = typename Base::Scalar>
 void simulate_extended(Extended<Base>& model, std::span<const double> time, std::span<const T> x,
                        std::span<const double> normal, std::span<T> force,
