@@ -98,18 +98,17 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
     out(rows - 1) = Eigen::Map<const Eigen::VectorXd>(residuals_.data(), n).norm();
     return std::isfinite(out(rows - 1));
   }
-  if (streaming_ && streaming_->streams()) {
-    if (!evaluate_streamed(parameters, jacobians)) return false;
-  } else {
-    if (!evaluate_whole(parameters, jacobians)) return false;
-  }
+  const auto& sizes = inner_->parameter_block_sizes();
+  Eigen::Index p = 0;  // the requested columns
+  for (std::size_t b = 0; b < sizes.size(); ++b)
+    if (jacobians[b]) p += sizes[b];
+  gram_.setZero(p + 1, p + 1);
+  const bool ok = streaming_ && streaming_->streams() ? add_rows_streamed(parameters, jacobians)
+                                                      : add_rows_whole(parameters, jacobians);
+  if (!ok) return false;
   normal_factor(gram_, factor_);
   if (!factor_.allFinite()) return false;
   // Rows beyond P + 1 of the requested columns (blocks held constant) are zero.
-  const auto& sizes = inner_->parameter_block_sizes();
-  Eigen::Index p = 0;
-  for (std::size_t b = 0; b < sizes.size(); ++b)
-    if (jacobians[b]) p += sizes[b];
   out.setZero();
   out.head(p + 1) = factor_.col(p);
   Eigen::Index c = 0;
@@ -124,44 +123,34 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
   return true;
 }
 
-bool CompressedCost::evaluate_streamed(double const* const* parameters, double** jacobians) const {
+bool CompressedCost::add_rows_streamed(double const* const* parameters,
+                                       double** jacobians) const {
   const auto& sizes = inner_->parameter_block_sizes();
   const std::unique_ptr<bool[]> requested(new bool[sizes.size()]);
-  Eigen::Index p = 0;
-  for (std::size_t b = 0; b < sizes.size(); ++b) {
-    requested[b] = jacobians[b] != nullptr;
-    if (requested[b]) p += sizes[b];
-  }
-  gram_.setZero(p + 1, p + 1);
+  for (std::size_t b = 0; b < sizes.size(); ++b) requested[b] = jacobians[b] != nullptr;
   GramAccumulator acc(gram_);
-  std::vector<const double*> row(sizes.size(), nullptr);
-  const bool ok = streaming_->EvaluateRows(
-      parameters, residuals_.data(), requested.get(),
-      [&](std::size_t k, const double* const* rows) {
-        for (std::size_t b = 0; b < sizes.size(); ++b) row[b] = requested[b] ? rows[b] : nullptr;
-        acc.add(row.data(), sizes, residuals_[k]);
-      });
-  if (!ok) return false;
+  // rows[b] is null for a block not requested (RowStreamingCost): the accumulator skips it.
+  if (!streaming_->EvaluateRows(parameters, residuals_.data(), requested.get(),
+                                [&](std::size_t k, const double* const* rows) {
+                                  acc.add(rows, sizes, residuals_[k]);
+                                }))
+    return false;
   acc.flush();
   return true;
 }
 
-bool CompressedCost::evaluate_whole(double const* const* parameters, double** jacobians) const {
+bool CompressedCost::add_rows_whole(double const* const* parameters, double** jacobians) const {
   const Eigen::Index n = inner_->num_residuals();
   const auto& sizes = inner_->parameter_block_sizes();
   jacobians_.resize(sizes.size());
   std::vector<double*> inner_jacobians(sizes.size(), nullptr);
-  std::vector<const double*> blocks(sizes.size(), nullptr);
-  Eigen::Index p = 0;
   for (std::size_t b = 0; b < sizes.size(); ++b) {
     if (!jacobians[b]) continue;
     jacobians_[b].resize(static_cast<std::size_t>(n * sizes[b]));
     inner_jacobians[b] = jacobians_[b].data();
-    blocks[b] = jacobians_[b].data();
-    p += sizes[b];
   }
   if (!inner_->Evaluate(parameters, residuals_.data(), inner_jacobians.data())) return false;
-  gram_.setZero(p + 1, p + 1);
+  const std::vector<const double*> blocks(inner_jacobians.begin(), inner_jacobians.end());
   accumulate_gram(blocks, sizes, residuals_.data(), n, gram_);
   return true;
 }

@@ -105,9 +105,9 @@ class CompressedCost final : public ceres::CostFunction {
   const ceres::CostFunction& inner() const { return *inner_; }
 
  private:
-  // Both leave the lower triangle of [J r]'s Gram matrix in gram_.
-  bool evaluate_streamed(double const* const* parameters, double** jacobians) const;
-  bool evaluate_whole(double const* const* parameters, double** jacobians) const;
+  // Both add the rows of [J r] (the requested columns) to gram_'s lower triangle.
+  bool add_rows_streamed(double const* const* parameters, double** jacobians) const;
+  bool add_rows_whole(double const* const* parameters, double** jacobians) const;
 
   std::unique_ptr<ceres::CostFunction> inner_;
   const RowStreamingCost* streaming_ = nullptr;  // inner_ itself when it streams its rows

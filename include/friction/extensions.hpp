@@ -950,16 +950,11 @@ void for_each_extended_step(Extended<Base>& model, std::span<const double> time,
       }
     }
   };
-  // sum_i w_i (x_i - x_k) over sample k's window (sample_derivatives.hpp).
+  // A derivative at sample k from the ring of the samples it is taken of.
   auto filtered = [&](LocalPolynomialWeights& weights, const auto& values, std::size_t k) {
     using V = std::decay_t<decltype(values[0])>;
     if (weights.trivial()) return V(0);
-    std::size_t lo = 0;
-    const double* w = weights.at(k, lo);
-    V sum = V(0);
-    for (std::size_t i = lo; i < lo + weights.width(); ++i)
-      sum += w[i - lo] * (values[i & mask] - values[k & mask]);
-    return sum;
+    return weights.filter(k, V(0), [&](std::size_t i) -> const V& { return values[i & mask]; });
   };
   // Unshifted and filtered before (every evaluation of a fit but a delay's after the first): the
   // samples are read where they are, and nothing is made ahead.

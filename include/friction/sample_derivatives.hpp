@@ -201,10 +201,22 @@ class LocalPolynomialWeights {
   /// Too few samples for the polynomial: nothing to differentiate (the value is x_k, the
   /// derivatives 0).
   bool trivial() const { return trivial_; }
-  std::size_t width() const { return width_; }
   /// The samples a window reaches on either side of its own: 2m (windows at the record's edges
   /// are shifted inside it).
   std::size_t reach() const { return width_ > 0 ? width_ - 1 : 0; }
+
+  /// `start` plus sum_i w_i (x_i - x_k) over sample k's window (k not below the last call's):
+  /// the estimate at sample k, with start x_k for the value and 0 for a derivative.  `x(i)`:
+  /// sample i (a whole record's, or a ring's that holds the window).
+  template <typename V, class Sample>
+  V filter(std::size_t k, V start, const Sample& x) {
+    std::size_t lo = 0;
+    const double* w = at(k, lo);
+    // The value's weights sum to one and the derivatives' to zero: either way the sum over
+    // x_i - x_k keeps the digits of a displacement far from the origin.
+    for (std::size_t i = lo; i < lo + width_; ++i) start += w[i - lo] * (x(i) - x(k));
+    return start;
+  }
 
   /// The weights of sample k's window (k not below the last call's), `lo` its first sample.
   const double* at(std::size_t k, std::size_t& lo) {
@@ -291,15 +303,9 @@ void apply_local_polynomials(std::span<const double> time, std::span<const T> x,
       for (std::size_t k = 0; k < n; ++k) out[k] = order == 0 ? x[k] : T(0);
       continue;
     }
-    for (std::size_t k = 0; k < n; ++k) {
-      std::size_t lo = 0;
-      const double* wk = filter.at(k, lo);
-      // The value's weights sum to one and the derivatives' to zero: either way the sum over
-      // x_i - x_k keeps the digits of a displacement far from the origin.
-      T sum = order == 0 ? x[k] : T(0);
-      for (std::size_t i = lo; i < lo + filter.width(); ++i) sum += wk[i - lo] * (x[i] - x[k]);
-      out[k] = sum;
-    }
+    const auto sample = [&](std::size_t i) -> const T& { return x[i]; };
+    for (std::size_t k = 0; k < n; ++k)
+      out[k] = filter.filter(k, order == 0 ? x[k] : T(0), sample);
   }
 }
 
