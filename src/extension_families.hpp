@@ -11,7 +11,6 @@
 #pragma once
 
 #include <ceres/ceres.h>
-#include <ceres/dynamic_autodiff_cost_function.h>
 
 #include <Eigen/Dense>
 
@@ -37,6 +36,7 @@
 
 #include "bounded_solver.hpp"
 #include "compressed_cost.hpp"
+#include "streamed_autodiff_cost.hpp"
 
 namespace friction::extension_detail {
 
@@ -315,7 +315,8 @@ Box state_box(const Family& family, const Record& r) {
   return b;
 }
 
-// Residuals (F - Fhat) * scale of the extended model's free run on the record.
+// Residuals (F - Fhat) * scale of the extended model's free run on the record, handed over in
+// sample order (streamed_autodiff_cost.hpp: no N x P Jacobian is kept).
 template <class Family>
 struct FamilyCost {
   const Record* record;
@@ -324,8 +325,8 @@ struct FamilyCost {
   double scale;
   DerivativeWindows windows;  // the record's, computed once
 
-  template <typename T>
-  bool operator()(T const* const* p, T* residual) const {
+  template <typename T, class Visit>
+  bool operator()(T const* const* p, Visit&& visit) const {
     ExtensionParameters<T> ext = pieces.template cast<T>([](double v) { return T(v); });
     std::size_t j = family.base_count();
     ext.for_each_parameter([&](Effect, std::string_view, T& v) { v = p[0][j++]; });
@@ -333,7 +334,7 @@ struct FamilyCost {
     try {
       auto model = family.template make<T>(p[0], std::move(ext));
       family.template set_state<T>(model, p[0], p[1]);
-      extended_residuals(model, *record, scale, residual, windows);
+      visit_extended_residuals(model, *record, scale, windows, visit);
     } catch (const InvalidParameter&) {
       return false;
     }
@@ -342,18 +343,17 @@ struct FamilyCost {
 };
 
 template <class Family>
-using FamilyCostFunction = ceres::DynamicAutoDiffCostFunction<FamilyCost<Family>, 16>;
+using FamilyCostFunction = detail::StreamedAutoDiffCost<FamilyCost<Family>>;
 
 template <class Family>
 FamilyCostFunction<Family>* make_cost(const Record& r, const Family& family,
                                       const ExtensionParameters<double>& pieces, double scale,
                                       std::size_t theta_size) {
-  auto* cost = new FamilyCostFunction<Family>(
-      new FamilyCost<Family>{&r, family, pieces, scale, record_derivative_windows(r)});
-  cost->AddParameterBlock(static_cast<int>(theta_size));
-  cost->AddParameterBlock(static_cast<int>(family.state_count()));
-  cost->SetNumResiduals(static_cast<int>(r.size()));
-  return cost;
+  return new FamilyCostFunction<Family>(
+      std::make_unique<FamilyCost<Family>>(
+          FamilyCost<Family>{&r, family, pieces, scale, record_derivative_windows(r)}),
+      {static_cast<int>(theta_size), static_cast<int>(family.state_count())},
+      static_cast<int>(r.size()));
 }
 
 // Bounds of block 0: the family's base box (when refitted) and the pieces' boxes.
@@ -564,43 +564,95 @@ struct FreeCovariance {
 // errors the residual already shows is counted twice: the intervals err on the wide side).
 // Replicas are seeded by their index: the same record gives the same covariance.
 inline constexpr std::size_t kInputReplicas = 24;
+// Replicas whose force changes are held at once, each multiplied by the Jacobian's rows as they
+// come (J^T dF, one pass of the Jacobian per group): 8 bytes a sample each.
+inline constexpr std::size_t kReplicaGroup = 8;
 
-template <class Family>
-Eigen::MatrixXd input_error_covariance(const Record& r, const Family& family,
-                                       const ExtensionParameters<double>& pieces,
-                                       const std::vector<double>& theta,
-                                       const std::vector<double>& state,
-                                       const std::vector<double>& residual,
-                                       const Eigen::MatrixXd& Js, const Eigen::MatrixXd& Hinv) {
-  const Eigen::Index p = Js.cols(), n = Js.rows();
-  Eigen::MatrixXd second = Eigen::MatrixXd::Zero(p, p);
-  Record replica;
-  Eigen::VectorXd df(n);
-  std::size_t used = 0;
-  const Resolution sensor = estimate_displacement_resolution(r.measured());
-  DerivativeWindows windows;  // the replica's, as its conditioning chose them
-  for (std::size_t j = 0; j < kInputReplicas; ++j) {
-    if (!remeasured_replica(r, 0x9e3779b97f4a7c15ULL * (j + 1), replica, sensor, &windows)) break;
-    std::vector<double> f;
-    try {
-      f = family_run(replica, family, pieces, theta.data(), state, &windows);
-    } catch (const InvalidParameter&) {
-      continue;
-    }
-    for (Eigen::Index k = 0; k < n; ++k)
-      // The model's force on the record itself is F - residual (the cost at scale 1).
-      df(k) = f[static_cast<std::size_t>(k)] -
-              (r.force[static_cast<std::size_t>(k)] - residual[static_cast<std::size_t>(k)]);
-    if (!df.allFinite()) continue;
-    const Eigen::VectorXd g = Js.transpose() * df;
-    second.noalias() += g * g.transpose();
-    ++used;
+// The rows of the Jacobian of both blocks (all nt + ns columns) in sample order, visit(k, row),
+// with `residual` written up to k: from one pass of Jets when the cost streams, else (more than
+// StreamedAutoDiffCost::kMaxLanes columns) from its N x P blocks.
+template <class Family, class Visit>
+bool for_each_jacobian_row(const FamilyCostFunction<Family>& cost, const double* const* params,
+                           std::size_t nt, std::size_t ns, std::vector<double>& residual,
+                           Visit&& visit) {
+  const std::size_t n = residual.size();
+  std::vector<double> row(nt + ns);
+  if (cost.streams()) {
+    const bool requested[2] = {true, true};
+    return cost.EvaluateRows(params, residual.data(), requested,
+                             [&](std::size_t k, const double* const* rows) {
+                               std::copy_n(rows[0], nt, row.begin());
+                               std::copy_n(rows[1], ns, row.begin() + static_cast<long>(nt));
+                               visit(k, row);
+                             });
   }
-  if (used == 0) return second;
-  second /= static_cast<double>(used);
-  return Hinv * second * Hinv;
+  std::vector<double> j0(n * nt), j1(n * ns);
+  double* jac[2] = {j0.data(), j1.data()};
+  if (!cost.Evaluate(params, residual.data(), jac)) return false;
+  for (std::size_t k = 0; k < n; ++k) {
+    std::copy_n(j0.begin() + static_cast<long>(k * nt), nt, row.begin());
+    std::copy_n(j1.begin() + static_cast<long>(k * ns), ns, row.begin() + static_cast<long>(nt));
+    visit(k, row);
+  }
+  return true;
 }
 
+// The replicas' force changes dF (above), kReplicaGroup at a time, in the order of their seeds.
+template <class Family>
+class ReplicaForces {
+ public:
+  ReplicaForces(const Record& r, const Family& family, const ExtensionParameters<double>& pieces,
+                const std::vector<double>& theta, const std::vector<double>& state,
+                const std::vector<double>& residual)
+      : r_(r), family_(family), pieces_(pieces), theta_(theta), state_(state),
+        residual_(residual), sensor_(estimate_displacement_resolution(r.measured())) {}
+  // The next group (empty when every replica was made or one could not be).
+  const std::vector<std::vector<double>>& next() {
+    group_.clear();
+    while (!exhausted_ && next_ < kInputReplicas && group_.size() < kReplicaGroup) {
+      const std::size_t j = next_++;
+      if (!remeasured_replica(r_, 0x9e3779b97f4a7c15ULL * (j + 1), replica_, sensor_, &windows_)) {
+        exhausted_ = true;
+        break;
+      }
+      std::vector<double> f;
+      try {
+        f = family_run(replica_, family_, pieces_, theta_.data(), state_, &windows_);
+      } catch (const InvalidParameter&) {
+        continue;
+      }
+      bool finite = true;
+      for (std::size_t k = 0; k < f.size(); ++k) {
+        // The model's force on the record itself is F - residual (the cost at scale 1).
+        f[k] -= r_.force[k] - residual_[k];
+        finite = finite && std::isfinite(f[k]);
+      }
+      if (finite) group_.push_back(std::move(f));
+    }
+    return group_;
+  }
+
+ private:
+  const Record& r_;
+  const Family& family_;
+  const ExtensionParameters<double>& pieces_;
+  const std::vector<double>& theta_;
+  const std::vector<double>& state_;
+  const std::vector<double>& residual_;
+  Resolution sensor_;
+  DerivativeWindows windows_;  // the replica's, as its conditioning chose them
+  Record replica_;
+  std::vector<std::vector<double>> group_;
+  std::size_t next_ = 0;
+  bool exhausted_ = false;
+};
+
+// The Jacobian is never stored: its rows are visited (for_each_jacobian_row) as the model runs
+// and what the covariance needs is gathered from them on all nt + ns columns, unscaled: J^T J, the
+// AR(1)-coloured Gram matrix, the block scores and the replicas' J^T dF.  The free columns the
+// force feels and their unit-norm scales S follow from J^T J, and each of these is taken to the
+// scaled columns J S afterwards (each is linear or bilinear in the rows).  At 10^6 samples the
+// N x p Jacobian with its copies was the diagnosis's peak.
 template <class Family>
 FreeCovariance covariance_at(const Record& r, const Family& family,
                              const ExtensionParameters<double>& pieces, std::vector<double> theta,
@@ -608,13 +660,40 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
                              const std::vector<char>& free_state, const Box& theta_bounds,
                              const Box& state_bounds) {
   FreeCovariance out;
-  const std::size_t n = r.size(), nt = theta.size(), ns = state.size();
+  const std::size_t n = r.size(), nt = theta.size(), ns = state.size(), np = nt + ns;
   std::unique_ptr<FamilyCostFunction<Family>> cost(make_cost(r, family, pieces, 1.0, nt));
   std::vector<double> residual(n);
-  std::vector<double> j0(n * nt), j1(n * ns);
   const double* params[2] = {theta.data(), state.data()};
-  double* jac[2] = {j0.data(), j1.data()};
-  if (!cost->Evaluate(params, residual.data(), jac)) return out;
+  // The residual first, on doubles (the Jets' values to the bit): its colour sets up the
+  // accumulators, and the replicas' force changes are taken from the model's force.
+  if (!cost->Evaluate(params, residual.data(), nullptr)) return out;
+  if (!std::all_of(residual.begin(), residual.end(), [](double e) { return std::isfinite(e); }))
+    return out;
+  const ResidualColour colour = residual_colour(residual);
+  ColouredGram coloured(np, colour.phi);
+  BlockScores all_scores(np, score_block_length(n, colour));
+  ReplicaForces<Family> replicas(r, family, pieces, theta, state, residual);
+  std::vector<Eigen::VectorXd> replica_scores;  // J^T dF of each replica used
+  for (bool first = true;; first = false) {
+    const std::vector<std::vector<double>>& group = replicas.next();
+    if (!first && group.empty()) break;
+    std::vector<Eigen::VectorXd> g(group.size(), Eigen::VectorXd::Zero(static_cast<long>(np)));
+    const bool ok =
+        for_each_jacobian_row(*cost, params, nt, ns, residual,
+                              [&](std::size_t k, const std::vector<double>& row) {
+                                if (first) {
+                                  coloured.add(row);
+                                  all_scores.add(row, residual[k]);
+                                }
+                                const Eigen::Map<const Eigen::VectorXd> j(
+                                    row.data(), static_cast<Eigen::Index>(np));
+                                for (std::size_t i = 0; i < group.size(); ++i)
+                                  g[i].noalias() += group[i][k] * j;
+                              });
+    if (!ok) return out;
+    for (Eigen::VectorXd& v : g) replica_scores.push_back(std::move(v));
+  }
+  const Eigen::MatrixXd& gram = coloured.gram();
   // A parameter the force does not feel is not estimated by the record, and it is left out
   // rather than scaled up: an operator whose stiffness went to ~0 (1e-9 N/m beside 1e5) has
   // columns of ~1e-14 N, which the unit-norm scaling below would turn into full columns of their
@@ -625,37 +704,29 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
   // than 1e-12 of the residual's variance, i.e. its standard error alone would exceed 1e6 of
   // those steps.
   const double negligible = 1e-12 * sum_sq(residual) / static_cast<double>(n);
-  const auto felt = [&](const std::vector<double>& jac, std::size_t stride, std::size_t c) {
-    double s = 0;
-    for (std::size_t k = 0; k < n; ++k) s += jac[k * stride + c] * jac[k * stride + c];
-    return s >= negligible;
+  const auto felt = [&](std::size_t c) {
+    const auto i = static_cast<Eigen::Index>(c);
+    return gram(i, i) >= negligible;
   };
   std::vector<std::size_t>& cols = out.columns;
   for (std::size_t c = 0; c < nt; ++c)
-    if (free_theta[c] && felt(j0, nt, c)) cols.push_back(c);
+    if (free_theta[c] && felt(c)) cols.push_back(c);
   for (std::size_t c = 0; c < ns; ++c)
-    if (free_state[c] && felt(j1, ns, c)) cols.push_back(nt + c);
+    if (free_state[c] && felt(nt + c)) cols.push_back(nt + c);
   const std::size_t p = cols.size();
   if (p == 0 || n <= p) return out;
-  Eigen::MatrixXd J(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(p));
-  for (std::size_t k = 0; k < n; ++k)
-    for (std::size_t q = 0; q < p; ++q) {
-      const std::size_t c = cols[q];
-      J(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(q)) =
-          c < nt ? j0[k * nt + c] : j1[k * ns + (c - nt)];
-    }
-  // One N x p matrix from here on (J, then scaled in place): at 10^6 samples each copy was 8 p
-  // bytes a sample, and the two Jacobian blocks, J and its scaled copy were the diagnosis's peak.
-  std::vector<double>().swap(j0);
-  std::vector<double>().swap(j1);
-  if (!J.allFinite()) return out;
-  // Columns scaled to unit norm (a column without any effect keeps scale 1 and stays zero).
-  Eigen::VectorXd d = J.colwise().norm().transpose();
-  for (Eigen::Index q = 0; q < d.size(); ++q)
+  // Columns scaled to unit norm (a column without any effect keeps scale 1 and stays zero): the
+  // scaled Jacobian is Js = J S.
+  Eigen::VectorXd d(static_cast<Eigen::Index>(p));
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(np), d.size());
+  for (Eigen::Index q = 0; q < d.size(); ++q) {
+    const auto c = static_cast<Eigen::Index>(cols[static_cast<std::size_t>(q)]);
+    d(q) = std::sqrt(gram(c, c));
     if (!(d(q) > 0)) d(q) = 1.0;
-  J = J * d.cwiseInverse().asDiagonal();  // coefficient-wise: no aliasing
-  const Eigen::MatrixXd& Js = J;
-  const Eigen::MatrixXd H = Js.transpose() * Js;
+    S(c, q) = 1.0 / d(q);
+  }
+  const Eigen::MatrixXd H = S.transpose() * gram * S;
+  if (!H.allFinite()) return out;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(H);
   const double emax = eig.eigenvalues().maxCoeff();
   if (!(emax > 0)) return out;
@@ -745,22 +816,24 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
   const double s2 = sum_sq(residual) / static_cast<double>(n - rank);
   const Eigen::MatrixXd Hinv =
       eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
-  out.colour = residual_colour(residual);
-  ColouredGram gram(p, out.colour.phi);
-  BlockScores scores(p, score_block_length(n, out.colour));
-  std::vector<double> row(p);
-  for (std::size_t k = 0; k < n; ++k) {
-    for (std::size_t q = 0; q < p; ++q)
-      row[q] = Js(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(q));
-    gram.add(row);
-    scores.add(row, residual[k]);
-  }
+  out.colour = colour;
   // The larger of the AR(1) sandwich and the block scores' (noise_colour.hpp: misfit as well as
-  // noise).
-  Eigen::MatrixXd scaled = sandwich_covariance(Hinv, gram.coloured(), s2);
+  // noise), both of the scaled columns.
+  Eigen::MatrixXd scaled =
+      sandwich_covariance(Hinv, S.transpose() * coloured.coloured() * S, s2);
+  const BlockScores scores = all_scores.transformed(S);
   if (scores.blocks() >= kMinimumScoreBlocks)
     scaled = larger_variances(scaled, block_sandwich_covariance(Hinv, scores, n, rank));
-  scaled += input_error_covariance(r, family, pieces, theta, state, residual, Js, Hinv);
+  // The displacement's own error: the second moment of the replicas' responses Hinv Js^T dF.
+  if (!replica_scores.empty()) {
+    Eigen::MatrixXd second = Eigen::MatrixXd::Zero(d.size(), d.size());
+    for (const Eigen::VectorXd& g : replica_scores) {
+      const Eigen::VectorXd gs = S.transpose() * g;
+      second.noalias() += gs * gs.transpose();
+    }
+    second /= static_cast<double>(replica_scores.size());
+    scaled += Hinv * second * Hinv;
+  }
   scaled += bounded;
   out.covariance = d.cwiseInverse().asDiagonal() * scaled * d.cwiseInverse().asDiagonal();
   out.scale = d;

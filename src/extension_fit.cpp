@@ -2,7 +2,6 @@
 #include "friction/extension_fit.hpp"
 
 #include <ceres/ceres.h>
-#include <ceres/dynamic_autodiff_cost_function.h>
 
 #include <algorithm>
 #include <cmath>
@@ -14,6 +13,7 @@
 
 #include "bounded_solver.hpp"
 #include "compressed_cost.hpp"
+#include "streamed_autodiff_cost.hpp"
 
 namespace friction {
 
@@ -62,8 +62,9 @@ struct ExtendedCost {
   double scale;               // 1 / rms(F)
   DerivativeWindows windows;  // the record's, computed once
 
-  template <typename T>
-  bool operator()(T const* const* p, T* residual) const {
+  // Hands residual k to visit(k, residual_k) in sample order (streamed_autodiff_cost.hpp).
+  template <typename T, class Visit>
+  bool operator()(T const* const* p, Visit&& visit) const {
     using std::exp;
     const std::size_t m = operators;
     MaxwellSlipParameters<T> mp;
@@ -84,7 +85,7 @@ struct ExtendedCost {
       for (std::size_t i = 0; i < m; ++i) d[i] = (p[1][i] + a) * exp(p[0][m + i]);
       model.base().reset(std::span<const T>(d), model.asymmetry());
       if (pieces.frictional_lag) model.set_initial_lag_offset(p[1][m]);
-      extended_residuals(model, *record, scale, residual, windows);
+      visit_extended_residuals(model, *record, scale, windows, visit);
     } catch (const InvalidParameter&) {
       return false;  // outside the domain: Ceres rejects the step
     }
@@ -113,10 +114,12 @@ struct ExtendedCost {
 // E + 2 <= 16; other fits keep the whole-model derivatives.
 class StructuredSlipCost final : public ceres::CostFunction, public detail::RowStreamingCost {
  public:
-  explicit StructuredSlipCost(ExtendedCost* functor) : functor_(functor), whole_(functor) {
-    whole_.AddParameterBlock(static_cast<int>(2 * functor->operators + pieces()));
-    whole_.AddParameterBlock(static_cast<int>(functor->operators + lag()));
-    whole_.SetNumResiduals(static_cast<int>(functor->record->size()));
+  explicit StructuredSlipCost(ExtendedCost* functor)
+      : functor_(functor),
+        whole_(std::unique_ptr<ExtendedCost>(functor),
+               {static_cast<int>(2 * functor->operators + pieces()),
+                static_cast<int>(functor->operators + lag())},
+               static_cast<int>(functor->record->size())) {
     *mutable_parameter_block_sizes() = whole_.parameter_block_sizes();
     set_num_residuals(whole_.num_residuals());
   }
@@ -132,12 +135,12 @@ class StructuredSlipCost final : public ceres::CostFunction, public detail::RowS
     });
   }
 
-  bool streams() const override { return structured(); }
+  bool streams() const override { return structured() || whole_.streams(); }
 
   bool EvaluateRows(double const* const* p, double* residuals, const bool* requested,
                     const RowVisitor& visit) const override {
-    if (!structured()) return false;
-    if (!(*functor_)(p, residuals)) return false;
+    if (!structured()) return whole_.EvaluateRows(p, residuals, requested, visit);
+    if (!(*functor_)(p, [&](std::size_t k, double e) { residuals[k] = e; })) return false;
     const std::size_t e = pieces() + lag();
     if (e + 2 <= 4) return jacobian<4, 4>(p, requested, visit);
     if (e <= 4) return jacobian<4, 8>(p, requested, visit);
@@ -258,7 +261,7 @@ class StructuredSlipCost final : public ceres::CostFunction, public detail::RowS
   }
 
   ExtendedCost* functor_;  // owned by whole_
-  ceres::DynamicAutoDiffCostFunction<ExtendedCost, 16> whole_;
+  detail::StreamedAutoDiffCost<ExtendedCost> whole_;
 };
 
 }  // namespace

@@ -101,6 +101,17 @@ Eigen::MatrixXd BlockScores::meat(std::size_t merge) const {
   return meat;
 }
 
+BlockScores BlockScores::transformed(const Eigen::MatrixXd& s) const {
+  FRICTION_CHECK(s.rows() == score_.size(), "BlockScores: a transformation of ", s.rows(),
+                 " rows for ", score_.size(), " parameters");
+  BlockScores out(static_cast<std::size_t>(s.cols()), length_);
+  out.in_block_ = in_block_;
+  out.score_ = s.transpose() * score_;
+  out.done_.reserve(done_.size());
+  for (const Eigen::VectorXd& b : done_) out.done_.push_back(s.transpose() * b);
+  return out;
+}
+
 std::size_t BlockScores::blocks(std::size_t merge) const {
   FRICTION_CHECK(merge > 0, "BlockScores: blocks of 0 base blocks");
   const std::size_t base = done_.size() + (in_block_ > 0 ? 1 : 0);

@@ -240,6 +240,42 @@ TEST(NoiseColour, LargerVariancesKeepTheModelsCorrelations) {
   EXPECT_DOUBLE_EQ(c(0, 1), c(1, 0));
 }
 
+// covariance_at gathers the block scores and the coloured Gram matrix on every column of the
+// Jacobian, unscaled, and takes them to a choice of scaled columns afterwards: the result must be
+// that of the rows J S added directly, to rounding, including the partial last block.
+TEST(NoiseColour, ScoresAndColouredGramOfTransformedRowsAsIfAddedSo) {
+  std::mt19937_64 gen(29);
+  std::normal_distribution<double> w(0, 1);
+  const std::size_t n = 1037, p = 5;
+  Eigen::MatrixXd s = Eigen::MatrixXd::Zero(p, 3);  // columns 4, 0, 2, scaled
+  s(4, 0) = 1.0 / 3.0;
+  s(0, 1) = 7.5;
+  s(2, 2) = 1e-3;
+  BlockScores all(p, 40), direct(3, 40);
+  ColouredGram all_gram(p, 0.6), direct_gram(3, 0.6);
+  for (std::size_t k = 0; k < n; ++k) {
+    Eigen::VectorXd row(p);
+    for (Eigen::Index j = 0; j < row.size(); ++j) row(j) = w(gen) * std::pow(10.0, double(j) - 2);
+    const double e = w(gen);
+    const Eigen::VectorXd moved = s.transpose() * row;
+    all.add(std::span<const double>(row.data(), p), e);
+    all_gram.add(std::span<const double>(row.data(), p));
+    direct.add(std::span<const double>(moved.data(), 3), e);
+    direct_gram.add(std::span<const double>(moved.data(), 3));
+  }
+  const BlockScores moved = all.transformed(s);
+  ASSERT_EQ(moved.blocks(), direct.blocks());
+  EXPECT_EQ(moved.blocks(), (n + 39) / 40);
+  for (std::size_t merge : {1u, 2u, 4u}) {
+    const Eigen::MatrixXd a = moved.meat(merge), b = direct.meat(merge);
+    EXPECT_LE((a - b).norm(), 1e-12 * b.norm()) << "merge " << merge;
+  }
+  const Eigen::MatrixXd a = s.transpose() * all_gram.coloured() * s, b = direct_gram.coloured();
+  EXPECT_LE((a - b).norm(), 1e-12 * b.norm());
+  const Eigen::MatrixXd c = s.transpose() * all_gram.gram() * s, d = direct_gram.gram();
+  EXPECT_LE((c - d).norm(), 1e-12 * d.norm());
+}
+
 }  // namespace
 }  // namespace test_noise_colour
 }  // namespace friction::testing

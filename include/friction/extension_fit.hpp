@@ -70,6 +70,21 @@ struct ExtensionEstimate {
   double lower95 = 0, upper95 = 0;  ///< 95 % interval (pieces are fitted linearly: symmetric)
 };
 
+/// The residuals of extended_residuals (below) handed to visit(k, residual_k) in sample order,
+/// for a cost that hands its Jacobian over a row at a time (src/streamed_autodiff_cost.hpp).
+template <class Model, class Visit>
+void visit_extended_residuals(Model& model, const Record& r, double scale,
+                              const DerivativeWindows& windows, Visit&& visit) {
+  using T = typename Model::Scalar;
+  for_each_extended_step(
+      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
+      std::span<const double>(r.normal), &windows,
+      [&](std::size_t k, const auto&, const T& force) {
+        visit(k, T((T(r.force[k]) - force) * scale));
+      },
+      std::span<const double>(r.measured_displacement));
+}
+
 /// Residuals (F - Fhat) * scale of `model`'s free run on the record, from the state the model
 /// holds: the loop of every extension cost functor (Maxwell Slip here, the other bases in
 /// extension_identification.cpp).  The record is streamed (for_each_extended_step): nothing of
@@ -77,13 +92,8 @@ struct ExtensionEstimate {
 template <class Model, typename T>
 void extended_residuals(Model& model, const Record& r, double scale, T* residual,
                         const DerivativeWindows& windows) {
-  for_each_extended_step(
-      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
-      std::span<const double>(r.normal), &windows,
-      [&](std::size_t k, const auto&, const T& force) {
-        residual[k] = (T(r.force[k]) - force) * scale;
-      },
-      std::span<const double>(r.measured_displacement));
+  visit_extended_residuals(model, r, scale, windows,
+                           [&](std::size_t k, const T& e) { residual[k] = e; });
 }
 
 /// Free run of an extended Maxwell Slip model in double, with the regime of every sample (the
