@@ -461,6 +461,9 @@ Record Reader::read() {
                " samples, expected motion");
   }
 
+  // Grown by doubling: up to half of each column would stay allocated, unused, for as long as
+  // the record lives (a diagnosis keeps two).
+  for (auto& v : values) v.shrink_to_fit();
   Record rec;
   rec.time = std::move(values[kTime]);
   rec.displacement = std::move(values[kDisplacement]);

@@ -224,28 +224,50 @@ double stepping_shift(const Context& c, const State& s) {
   const Record& r = c.est;
   const std::size_t n = r.size(), steps = 4;
   if (n < 8) return 0.0;
-  Record fine;
-  fine.source = r.source;
+  // The grid four times finer, without a Record (no force, no conditioning): at 10^6 samples the
+  // fine record and the whole runs on it (force, regime, velocity, acceleration) were a quarter
+  // of the diagnosis's memory, and only the force at the record's own samples is read.
+  const std::size_t fine_n = steps * (n - 1) + 1;
+  std::vector<double> fine_time, fine_x, fine_normal;
+  fine_time.reserve(fine_n);
+  fine_x.reserve(fine_n);
+  if (!r.normal.empty()) fine_normal.reserve(fine_n);
   for (std::size_t k = 0; k + 1 < n; ++k)
     for (std::size_t j = 0; j < steps; ++j) {
       const double w = static_cast<double>(j) / static_cast<double>(steps);
       const double t = r.time[k] + w * (r.time[k + 1] - r.time[k]);
-      fine.time.push_back(t);
-      fine.displacement.push_back(interpolate_displacement(
-          std::span<const double>(r.time), std::span<const double>(r.displacement), k, t));
-      if (!r.normal.empty()) fine.normal.push_back((1 - w) * r.normal[k] + w * r.normal[k + 1]);
+      fine_time.push_back(t);
+      fine_x.push_back(interpolate_displacement(std::span<const double>(r.time),
+                                                std::span<const double>(r.displacement), k, t));
+      if (!r.normal.empty()) fine_normal.push_back((1 - w) * r.normal[k] + w * r.normal[k + 1]);
     }
-  fine.time.push_back(r.time.back());
-  fine.displacement.push_back(r.displacement.back());
-  if (!r.normal.empty()) fine.normal.push_back(r.normal.back());
-  fine.force.assign(fine.time.size(), 0.0);
+  fine_time.push_back(r.time.back());
+  fine_x.push_back(r.displacement.back());
+  if (!r.normal.empty()) fine_normal.push_back(r.normal.back());
   const std::vector<double> initial = deflections_from_relative(s.base, s.rho, s.ext);
-  const std::vector<double> coarse = run_extended_slip(s.base, s.ext, initial, r).force;
-  const std::vector<double> refined = run_extended_slip(s.base, s.ext, initial, fine).force;
+  // The model's force every `stride` samples of a grid (run_extended_slip's model and stepping).
+  const auto force_every = [&](const std::vector<double>& time, const std::vector<double>& x,
+                               const std::vector<double>& normal,
+                               const std::vector<double>& measured, std::size_t stride) {
+    Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(s.base), s.ext, 2);
+    set_extended_slip_state(model, std::span<const double>(initial));
+    std::vector<double> out((time.size() - 1) / stride + 1);
+    for_each_extended_step(
+        model, std::span<const double>(time), std::span<const double>(x),
+        std::span<const double>(normal), nullptr,
+        [&](std::size_t k, const ExtendedMotion<double>&, double force) {
+          if (k % stride == 0) out[k / stride] = force;
+        },
+        std::span<const double>(measured));
+    return out;
+  };
+  const std::vector<double> coarse =
+      force_every(r.time, r.displacement, r.normal, r.measured_displacement, 1);
+  const std::vector<double> refined = force_every(fine_time, fine_x, fine_normal, {}, steps);
   double num = 0, den = 0;
   for (std::size_t k = 1; k + 1 < n; ++k) {
     const double slope = (coarse[k + 1] - coarse[k - 1]) / (r.time[k + 1] - r.time[k - 1]);
-    num += (refined[k * steps] - coarse[k]) * slope;
+    num += (refined[k] - coarse[k]) * slope;
     den += slope * slope;
   }
   return den > 0 ? num / den : 0.0;
