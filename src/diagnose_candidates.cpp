@@ -263,7 +263,10 @@ double stepping_shift(const Context& c, const State& s) {
   };
   const std::vector<double> coarse =
       force_every(r.time, r.displacement, r.normal, r.measured_displacement, 1);
-  const std::vector<double> refined = force_every(fine_time, fine_x, fine_normal, {}, steps);
+  const std::vector<double> refined = [&] {
+    const detail::UncachedSteps uncached;  // the filter of the fine grid is not asked for again
+    return force_every(fine_time, fine_x, fine_normal, {}, steps);
+  }();
   double num = 0, den = 0;
   for (std::size_t k = 1; k + 1 < n; ++k) {
     const double slope = (coarse[k + 1] - coarse[k - 1]) / (r.time[k + 1] - r.time[k - 1]);

@@ -688,5 +688,46 @@ TEST(Extensions, StreamedSteppingHandsOverTheWholeRecordsMotions) {
   expect_streamed_motions<double>(short_time, short_x, {}, wide, 1.2e-3, "40 samples, wide");
 }
 
+// A one-off run under UncachedSteps (the diagnosis's stepping check on a grid four times finer)
+// neither fills the thread's filter cache, whose buffers would keep that grid's length, nor reads
+// it, and leaves it as it found it for the fit that filled it: the same force as without the cache.
+TEST(Extensions, UncachedStepsLeaveTheFilterCacheAlone) {
+  std::vector<double> time, x;
+  friction::testing::test_excitation(2000, 1e-3, 20e-6, time, x);
+  ExtensionParameters<double> p;
+  p.viscous = {{10.0}};
+  MaxwellSlipParameters<double> base;
+  base.stiffness = {4e4, 1e4};
+  base.threshold = {2e-6, 3e-5};
+  auto run = [&](const std::vector<double>& t, const std::vector<double>& xx) {
+    Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(base), p);
+    return friction::simulate_extended(model, std::span<const double>(t),
+                                       std::span<const double>(xx));
+  };
+  const std::vector<double> first = run(time, x);  // fills the cache with this record's filter
+  auto& cache = friction::detail::filtered_displacement();
+  ASSERT_TRUE(cache.valid);
+  ASSERT_EQ(cache.time.size(), time.size());
+  const std::size_t capacity = cache.velocity.capacity();
+  std::vector<double> fine_time, fine_x;  // twice as fine: another length, another filter
+  for (std::size_t k = 0; k + 1 < time.size(); ++k) {
+    fine_time.insert(fine_time.end(), {time[k], 0.5 * (time[k] + time[k + 1])});
+    fine_x.insert(fine_x.end(), {x[k], 0.5 * (x[k] + x[k + 1])});
+  }
+  std::vector<double> fine;
+  {
+    const friction::detail::UncachedSteps uncached;
+    fine = run(fine_time, fine_x);
+    EXPECT_TRUE(cache.busy);
+  }
+  EXPECT_FALSE(cache.busy);
+  EXPECT_TRUE(cache.valid);
+  EXPECT_EQ(cache.time.size(), time.size()) << "the fine grid went into the cache";
+  EXPECT_EQ(cache.velocity.capacity(), capacity);
+  EXPECT_EQ(run(fine_time, fine_x), fine) << "the uncached run differs from a cached one";
+  // The cache now holds the fine grid's filter: the first record again, the first force.
+  EXPECT_EQ(run(time, x), first);
+}
+
 }  // namespace
 }  // namespace test_extensions

@@ -845,6 +845,19 @@ inline FilteredDisplacement& filtered_displacement() {
   thread_local FilteredDisplacement cache;
   return cache;
 }
+/// While one lives, for_each_extended_step on this thread neither reads nor fills the cache: for
+/// a one-off run on a grid of its own (a finer one, say), whose filter nobody asks for again and
+/// whose length the cache's buffers would otherwise keep for the thread's lifetime.
+class UncachedSteps {
+ public:
+  UncachedSteps() : was_(filtered_displacement().busy) { filtered_displacement().busy = true; }
+  UncachedSteps(const UncachedSteps&) = delete;
+  UncachedSteps& operator=(const UncachedSteps&) = delete;
+  ~UncachedSteps() { filtered_displacement().busy = was_; }
+
+ private:
+  bool was_;
+};
 }  // namespace detail
 
 /// Steps an extended model over a record, calling visit(k, context, force) after every sample
