@@ -420,13 +420,16 @@ ceres::Solver::Options solver_options(const NlrOptions& o, std::size_t samples) 
 // estimate for those parameters.
 std::vector<double> start_rho(const Data& d, const std::vector<double>& thr) {
   const std::size_t m = thr.size();
-  detail::OperatorTrajectories traj;
-  detail::operator_trajectories(thr, std::vector<double>(m, 0.0), d.x, false, traj, d.limits,
-                                d.turns);
   const Eigen::Index mi = static_cast<Eigen::Index>(m);
-  const Eigen::VectorXd k = detail::box_least_squares(
-      traj.delta, d.y, Eigen::VectorXd::Zero(mi),
-      Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity()));
+  // The trajectories (N x M) are freed before the initial-state estimate, which keeps its own.
+  const Eigen::VectorXd k = [&] {
+    detail::OperatorTrajectories traj;
+    detail::operator_trajectories(thr, std::vector<double>(m, 0.0), d.x, false, traj, d.limits,
+                                  d.turns);
+    return detail::box_least_squares(
+        traj.delta, d.y, Eigen::VectorXd::Zero(mi),
+        Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity()));
+  }();
   Eigen::MatrixXd filter = k;
   if (filter.norm() == 0.0) return std::vector<double>(m, 0.0);
   const auto init = estimate_initial_deflections(
