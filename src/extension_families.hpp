@@ -716,16 +716,33 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
   const std::size_t p = cols.size();
   if (p == 0 || n <= p) return out;
   // Columns scaled to unit norm (a column without any effect keeps scale 1 and stays zero): the
-  // scaled Jacobian is Js = J S.
-  Eigen::VectorXd d(static_cast<Eigen::Index>(p));
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(np), d.size());
-  for (Eigen::Index q = 0; q < d.size(); ++q) {
-    const auto c = static_cast<Eigen::Index>(cols[static_cast<std::size_t>(q)]);
-    d(q) = std::sqrt(gram(c, c));
-    if (!(d(q) > 0)) d(q) = 1.0;
-    S(c, q) = 1.0 / d(q);
+  // scaled Jacobian is Js = J S, S the chosen columns times 1 / d.  Taken by indexing, not by
+  // products with S: a column left out (not free, not felt) may hold non-finite derivatives,
+  // and 0 times those is not 0.
+  Eigen::VectorXd d(static_cast<Eigen::Index>(p)), inv_d(static_cast<Eigen::Index>(p));
+  std::vector<Eigen::Index> at(p);
+  for (std::size_t q = 0; q < p; ++q) {
+    const auto qi = static_cast<Eigen::Index>(q);
+    at[q] = static_cast<Eigen::Index>(cols[q]);
+    d(qi) = std::sqrt(gram(at[q], at[q]));
+    if (!(d(qi) > 0)) d(qi) = 1.0;
+    inv_d(qi) = 1.0 / d(qi);
   }
-  const Eigen::MatrixXd H = S.transpose() * gram * S;
+  const auto scaled_vector = [&](const Eigen::VectorXd& v) {
+    Eigen::VectorXd out_v(d.size());
+    for (Eigen::Index q = 0; q < d.size(); ++q)
+      out_v(q) = inv_d(q) * v(at[static_cast<std::size_t>(q)]);
+    return out_v;
+  };
+  const auto scaled_matrix = [&](const Eigen::MatrixXd& m) {
+    Eigen::MatrixXd out_m(d.size(), d.size());
+    for (Eigen::Index q = 0; q < d.size(); ++q)
+      for (Eigen::Index u = 0; u < d.size(); ++u)
+        out_m(q, u) = inv_d(q) * m(at[static_cast<std::size_t>(q)], at[static_cast<std::size_t>(u)]) *
+                      inv_d(u);
+    return out_m;
+  };
+  const Eigen::MatrixXd H = scaled_matrix(gram);
   if (!H.allFinite()) return out;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(H);
   const double emax = eig.eigenvalues().maxCoeff();
@@ -819,16 +836,15 @@ FreeCovariance covariance_at(const Record& r, const Family& family,
   out.colour = colour;
   // The larger of the AR(1) sandwich and the block scores' (noise_colour.hpp: misfit as well as
   // noise), both of the scaled columns.
-  Eigen::MatrixXd scaled =
-      sandwich_covariance(Hinv, S.transpose() * coloured.coloured() * S, s2);
-  const BlockScores scores = all_scores.transformed(S);
+  Eigen::MatrixXd scaled = sandwich_covariance(Hinv, scaled_matrix(coloured.coloured()), s2);
+  const BlockScores scores = all_scores.selected(at, inv_d);
   if (scores.blocks() >= kMinimumScoreBlocks)
     scaled = larger_variances(scaled, block_sandwich_covariance(Hinv, scores, n, rank));
   // The displacement's own error: the second moment of the replicas' responses Hinv Js^T dF.
   if (!replica_scores.empty()) {
     Eigen::MatrixXd second = Eigen::MatrixXd::Zero(d.size(), d.size());
     for (const Eigen::VectorXd& g : replica_scores) {
-      const Eigen::VectorXd gs = S.transpose() * g;
+      const Eigen::VectorXd gs = scaled_vector(g);
       second.noalias() += gs * gs.transpose();
     }
     second /= static_cast<double>(replica_scores.size());

@@ -101,14 +101,24 @@ Eigen::MatrixXd BlockScores::meat(std::size_t merge) const {
   return meat;
 }
 
-BlockScores BlockScores::transformed(const Eigen::MatrixXd& s) const {
-  FRICTION_CHECK(s.rows() == score_.size(), "BlockScores: a transformation of ", s.rows(),
-                 " rows for ", score_.size(), " parameters");
-  BlockScores out(static_cast<std::size_t>(s.cols()), length_);
+BlockScores BlockScores::selected(const std::vector<Eigen::Index>& columns,
+                                  const Eigen::VectorXd& scale) const {
+  FRICTION_CHECK(scale.size() == static_cast<Eigen::Index>(columns.size()), "BlockScores: ",
+                 scale.size(), " scales for ", columns.size(), " columns");
+  const auto pick = [&](const Eigen::VectorXd& s) {
+    Eigen::VectorXd out(scale.size());
+    for (Eigen::Index q = 0; q < scale.size(); ++q) {
+      const Eigen::Index c = columns[static_cast<std::size_t>(q)];
+      FRICTION_CHECK(c >= 0 && c < score_.size(), "BlockScores: column ", c, " of ", score_.size());
+      out(q) = scale(q) * s(c);
+    }
+    return out;
+  };
+  BlockScores out(columns.size(), length_);
   out.in_block_ = in_block_;
-  out.score_ = s.transpose() * score_;
+  out.score_ = pick(score_);
   out.done_.reserve(done_.size());
-  for (const Eigen::VectorXd& b : done_) out.done_.push_back(s.transpose() * b);
+  for (const Eigen::VectorXd& b : done_) out.done_.push_back(pick(b));
   return out;
 }
 

@@ -109,9 +109,10 @@ class BlockScores {
   Eigen::MatrixXd meat(std::size_t merge = 1) const;
   /// B, the blocks of `merge` base blocks, the partial one included.
   std::size_t blocks(std::size_t merge = 1) const;
-  /// The block scores of the rows J S instead of J (S: parameters x q, e.g. a choice of columns
-  /// and their scales), as if those rows had been added: a score is linear in its rows.
-  BlockScores transformed(const Eigen::MatrixXd& s) const;
+  /// The block scores of rows that hold only `columns` of these, each times its `scale`, as if
+  /// those rows had been added (a score is linear in its rows); the other columns are not read.
+  BlockScores selected(const std::vector<Eigen::Index>& columns,
+                       const Eigen::VectorXd& scale) const;
 
  private:
   std::size_t length_, in_block_ = 0;
