@@ -70,8 +70,12 @@ struct ExtensionEstimate {
   double lower95 = 0, upper95 = 0;  ///< 95 % interval (pieces are fitted linearly: symmetric)
 };
 
-/// The residuals of extended_residuals (below) handed to visit(k, residual_k) in sample order,
-/// for a cost that hands its Jacobian over a row at a time (src/streamed_autodiff_cost.hpp).
+/// Residuals (F - Fhat) * scale of `model`'s free run on the record, from the state the model
+/// holds, handed to visit(k, residual_k) in sample order: the loop of every extension cost
+/// functor (Maxwell Slip in extension_fit.cpp, the other bases in extension_families.hpp), whose
+/// Jacobian rows are then handed over a sample at a time (src/streamed_autodiff_cost.hpp).  The
+/// record is streamed (for_each_extended_step): nothing of its length is allocated per evaluation
+/// (the filter's cache, one per thread, aside).
 template <class Model, class Visit>
 void visit_extended_residuals(Model& model, const Record& r, double scale,
                               const DerivativeWindows& windows, Visit&& visit) {
@@ -83,17 +87,6 @@ void visit_extended_residuals(Model& model, const Record& r, double scale,
         visit(k, T((T(r.force[k]) - force) * scale));
       },
       std::span<const double>(r.measured_displacement));
-}
-
-/// Residuals (F - Fhat) * scale of `model`'s free run on the record, from the state the model
-/// holds: the loop of every extension cost functor (Maxwell Slip here, the other bases in
-/// extension_identification.cpp).  The record is streamed (for_each_extended_step): nothing of
-/// its length is allocated per evaluation (the filter's cache, one per thread, aside).
-template <class Model, typename T>
-void extended_residuals(Model& model, const Record& r, double scale, T* residual,
-                        const DerivativeWindows& windows) {
-  visit_extended_residuals(model, r, scale, windows,
-                           [&](std::size_t k, const T& e) { residual[k] = e; });
 }
 
 /// Free run of an extended Maxwell Slip model in double, with the regime of every sample (the
