@@ -7,7 +7,10 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <span>
+#include <utility>
 
+#include "compressed_cost.hpp"
 #include "diagnose_stages.hpp"
 #include "friction/diagnose.hpp"
 #include "friction/extension_fit.hpp"
@@ -30,34 +33,52 @@ Explained explain(const std::vector<double>& e, const std::vector<std::vector<do
                   const std::vector<std::vector<double>>& effect) {
   const std::size_t n = e.size();
   const std::size_t q = nuisance.size(), p = effect.size();
-  Eigen::MatrixXd a(n, q + p);
-  Eigen::VectorXd b(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    b[static_cast<Eigen::Index>(k)] = e[k];
-    for (std::size_t j = 0; j < q; ++j)
-      a(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(j)) = nuisance[j][k];
-    for (std::size_t j = 0; j < p; ++j)
-      a(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(q + j)) = effect[j][k];
-  }
-  const double total = b.squaredNorm();
+  const auto as_vector = [n](const std::vector<double>& v) {
+    return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(n));
+  };
+  const double total = as_vector(e).squaredNorm();
   Explained out;
   out.coefficients = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p));
   if (total <= 0) return out;
   // A signature that is zero on the whole record (a sliding-only signature on a run that never
   // slides) explains nothing and has no coefficient: a least-squares solve of zero columns gave
   // an infinite one on a study record, and a start built from it failed every grid point.
-  for (std::size_t j = 0; j < p; ++j)
-    if (!(a.col(static_cast<Eigen::Index>(q + j)).squaredNorm() > 0)) return out;
-  auto rss_of = [&](const Eigen::MatrixXd& m, Eigen::VectorXd* coef) {
-    if (m.cols() == 0) return total;
-    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(m);
-    const Eigen::VectorXd c = qr.solve(b);
+  for (const std::vector<double>& x : effect)
+    if (!(as_vector(x).squaredNorm() > 0)) return out;
+  // [nuisance effect e] goes in blocks of rows into its triangular factor R (A = Q R): for every
+  // c, ||e - A c|| = ||R_e - R_A c|| on R's columns, so both fits below are problems of q + p + 1
+  // rows, and no N x (q + p) matrix or QR of it is kept (three record-long columns per call, with
+  // the QR's copy, were a tenth of a diagnosis' peak memory).
+  const Eigen::Index cols = static_cast<Eigen::Index>(q + p + 1);
+  detail::RowCompressor compressor(cols);
+  {
+    constexpr std::size_t kRows = 1024;
+    Eigen::MatrixXd block(static_cast<Eigen::Index>(std::min(kRows, n)), cols);
+    for (std::size_t k0 = 0; k0 < n; k0 += kRows) {
+      const std::size_t rows = std::min(kRows, n - k0);
+      for (std::size_t k = 0; k < rows; ++k) {
+        const Eigen::Index row = static_cast<Eigen::Index>(k);
+        for (std::size_t j = 0; j < q; ++j)
+          block(row, static_cast<Eigen::Index>(j)) = nuisance[j][k0 + k];
+        for (std::size_t j = 0; j < p; ++j)
+          block(row, static_cast<Eigen::Index>(q + j)) = effect[j][k0 + k];
+        block(row, cols - 1) = e[k0 + k];
+      }
+      compressor.add(block.topRows(static_cast<Eigen::Index>(rows)));
+    }
+  }
+  const Eigen::MatrixXd r = compressor.factor();
+  const auto rb = r.col(cols - 1);
+  auto rss_of = [&](Eigen::Index m, Eigen::VectorXd* coef) {
+    if (m == 0) return total;
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(r.leftCols(m));
+    const Eigen::VectorXd c = qr.solve(rb);
     if (coef) *coef = c;
-    return (b - m * c).squaredNorm();
+    return (rb - r.leftCols(m) * c).squaredNorm();
   };
-  const double r0 = rss_of(a.leftCols(static_cast<Eigen::Index>(q)), nullptr);
+  const double r0 = rss_of(static_cast<Eigen::Index>(q), nullptr);
   Eigen::VectorXd c;
-  const double r1 = rss_of(a, &c);
+  const double r1 = rss_of(cols - 1, &c);
   if (!c.allFinite() || !std::isfinite(r1)) return out;
   out.share = std::max(0.0, (r0 - r1) / total);
   out.coefficients = c.tail(static_cast<Eigen::Index>(p));
@@ -66,7 +87,8 @@ Explained explain(const std::vector<double>& e, const std::vector<std::vector<do
 
 // The per-sample signals of a free run: residual, simulated force, motion and regime.
 struct Signals {
-  std::vector<double> e, fhat, v, a, x, t, sliding, dir;
+  std::vector<double> e, fhat, v, a, t, sliding, dir;
+  std::span<const double> x;  // the record's displacement
   double f0 = 0;
 };
 
@@ -74,14 +96,12 @@ Signals signals_of(const MaxwellSlipParameters<double>& base,
                    const ExtensionParameters<double>& ext, const Record& r,
                    const std::vector<double>& rho) {
   const std::size_t n = r.size();
-  const ExtendedSlipRun run =
-      run_extended_slip(base, ext, deflections_from_relative(base, rho, ext), r);
+  ExtendedSlipRun run = run_extended_slip(base, ext, deflections_from_relative(base, rho, ext), r);
   Signals s;
   s.f0 = ext.reference_force > 0 ? ext.reference_force : base.sliding_force();
   s.e.resize(n);
-  s.fhat = run.force;
-  s.v = run.velocity;
-  s.a = run.acceleration;
+  s.v = std::move(run.velocity);
+  s.a = std::move(run.acceleration);
   s.x = r.displacement;
   s.t.resize(n);
   s.sliding.resize(n);
@@ -92,6 +112,7 @@ Signals signals_of(const MaxwellSlipParameters<double>& base,
     s.sliding[k] = run.sliding[k] ? 1.0 : 0.0;
     s.dir[k] = run.sliding[k] ? (run.force[k] >= 0 ? 1.0 : -1.0) : 0.0;
   }
+  s.fhat = std::move(run.force);
   return s;
 }
 

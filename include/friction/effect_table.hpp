@@ -64,6 +64,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "friction/parametrisation.hpp"
@@ -475,37 +476,39 @@ inline SignatureGrid evidence_grid(Effect e, const std::vector<double>& sliding_
 inline SignatureRegressors evidence_signature(Effect e, const EvidenceSignals& s, double grid) {
   constexpr double kPi = 3.14159265358979323846;
   const std::size_t n = s.residual.size();
-  const std::vector<double> dir(s.direction.begin(), s.direction.end());
+  // The columns are moved into the result, not copied: each is as long as the record, and the
+  // evidence stage builds dozens of these while other stages run beside it.
+  const auto dir = [&s] { return std::vector<double>(s.direction.begin(), s.direction.end()); };
   std::vector<double> col(n, 0.0);
   SignatureRegressors r;
   switch (e) {
     case Effect::offset:
-      r.effect = {std::vector<double>(n, 1.0)};
+      r.effect.emplace_back(n, 1.0);
       return r;
     case Effect::viscous:
       for (std::size_t k = 0; k < n; ++k) col[k] = s.sliding[k] * s.velocity[k];
-      r.nuisance = {dir};
-      r.effect = {col};
+      r.nuisance.push_back(dir());
+      r.effect.push_back(std::move(col));
       return r;
     case Effect::asymmetry:
       for (std::size_t k = 0; k < n; ++k)
         col[k] = s.reference_force > 0 ? s.simulated[k] * s.simulated[k] / s.reference_force : 0.0;
-      r.nuisance = {std::vector<double>(n, 1.0)};
-      r.effect = {col};
+      r.nuisance.emplace_back(n, 1.0);
+      r.effect.push_back(std::move(col));
       return r;
     case Effect::inertia:
-      r.effect = {std::vector<double>(s.acceleration.begin(), s.acceleration.end())};
+      r.effect.emplace_back(s.acceleration.begin(), s.acceleration.end());
       return r;
     case Effect::drift:
       for (std::size_t k = 0; k < n; ++k) col[k] = s.direction[k] * s.reference_force * s.time[k];
-      r.nuisance = {dir};
-      r.effect = {col};
+      r.nuisance.push_back(dir());
+      r.effect.push_back(std::move(col));
       return r;
     case Effect::delay:
       for (std::size_t k = 1; k + 1 < n; ++k)
         col[k] = (s.simulated[k + 1] - s.simulated[k - 1]) /
                  (s.record_time[k + 1] - s.record_time[k - 1]);
-      r.effect = {col};
+      r.effect.push_back(std::move(col));
       return r;
     case Effect::frictional_lag: {
       std::vector<double> v_s(n);
@@ -513,15 +516,16 @@ inline SignatureRegressors evidence_signature(Effect e, const EvidenceSignals& s
         v_s[k] = s.sliding[k] * s.velocity[k];
         col[k] = s.sliding[k] * s.acceleration[k];
       }
-      r.nuisance = {dir, v_s};
-      r.effect = {col};
+      r.nuisance.push_back(dir());
+      r.nuisance.push_back(std::move(v_s));
+      r.effect.push_back(std::move(col));
       return r;
     }
     case Effect::stribeck:
       for (std::size_t k = 0; k < n; ++k)
         col[k] = s.direction[k] * std::exp(-(s.velocity[k] / grid) * (s.velocity[k] / grid));
-      r.nuisance = {dir};
-      r.effect = {col};
+      r.nuisance.push_back(dir());
+      r.effect.push_back(std::move(col));
       return r;
     case Effect::position_dependence: {
       std::vector<double> c2(n);
@@ -529,14 +533,15 @@ inline SignatureRegressors evidence_signature(Effect e, const EvidenceSignals& s
         col[k] = s.direction[k] * std::sin(2 * kPi * s.position[k] / grid);
         c2[k] = s.direction[k] * std::cos(2 * kPi * s.position[k] / grid);
       }
-      r.nuisance = {dir};
-      r.effect = {col, c2};
+      r.nuisance.push_back(dir());
+      r.effect.push_back(std::move(col));
+      r.effect.push_back(std::move(c2));
       return r;
     }
     case Effect::normal_load:
       for (std::size_t k = 0; k < n; ++k) col[k] = s.direction[k] * s.normal[k];
-      r.nuisance = {dir};
-      r.effect = {col};
+      r.nuisance.push_back(dir());
+      r.effect.push_back(std::move(col));
       return r;
   }
   return r;
