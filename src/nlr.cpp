@@ -84,8 +84,10 @@ struct Workspace {
   bool has_sensitivities = false, has_jacobian = false, has_factor = false;
   bool eager = false;
   // The compressed Jacobian (compressed_jacobian): its factor and the small matrices and row blocks
-  // it is built from.
+  // it is built from; the sensitivities, decoded a block of rows at a time (block_dt, block_di) or,
+  // for full_jacobian, whole (dt, di).
   Eigen::MatrixXd factor, gram_aug, gram_phi, cross_t, cross_i, coupling, block_in, block_j;
+  Eigen::MatrixXd block_dt, block_di, dt, di;
 };
 
 enum class Jacobian { none, full, compressed };
@@ -96,6 +98,9 @@ void full_jacobian(const Data& d, std::span<const double> s, std::span<const dou
   const auto& traj = ws.traj;
   const VpValue& v = ws.v;
   const Eigen::Index n = traj.delta.rows(), mi = traj.delta.cols();
+  ws.dt.resize(n, mi);
+  ws.di.resize(n, mi);
+  traj.sensitivity_rows(0, n, ws.dt, ws.di);
   ws.jd.setZero(n, mi);
   ws.jr.setZero(n, mi);
   std::vector<Eigen::Index> free;
@@ -118,8 +123,8 @@ void full_jacobian(const Data& d, std::span<const double> s, std::span<const dou
       const Eigen::Index i = free[static_cast<std::size_t>(f)];
       const double ki = v.k(i), ri = rho[static_cast<std::size_t>(i)],
                    di = thr[static_cast<std::size_t>(i)];
-      ws.a.col(f) = traj.d_threshold.col(i) + ri * traj.d_initial.col(i);
-      ws.a.col(nf + f) = di * traj.d_initial.col(i);
+      ws.a.col(f) = ws.dt.col(i) + ri * ws.di.col(i);
+      ws.a.col(nf + f) = di * ws.di.col(i);
       ws.w(f, f) = ws.a.col(f).dot(v.r);
       ws.w(f, nf + f) = ws.a.col(nf + f).dot(v.r);
       ws.a.col(f) *= ki;
@@ -135,6 +140,8 @@ void full_jacobian(const Data& d, std::span<const double> s, std::span<const dou
   ws.jac.resize(n, 2 * mi);
   ws.jac.leftCols(mi).noalias() = ws.jd * d.sb.jacobian(s);
   ws.jac.rightCols(mi) = ws.jr;
+  ws.dt.resize(0, 0);
+  ws.di.resize(0, 0);
 }
 
 // The compressed Jacobian: F ((2M+1) x (2M+1)) with F^T F = [J r]^T [J r], J the Jacobian of
@@ -178,9 +185,25 @@ void compressed_jacobian(const Data& d, std::span<const double> s, std::span<con
     Eigen::VectorXd sc, unused_b;
     Eigen::LLT<Eigen::MatrixXd> llt;
     blocked = detail::compress_by_gram(g, Eigen::VectorXd::Zero(nf), llt, sc, unused_r, unused_b);
+    constexpr Eigen::Index kRows = 256;  // a block of A and of [J r] stays in cache
+    ws.block_dt.resize(kRows, mi);
+    ws.block_di.resize(kRows, mi);
     if (blocked) {
-      ws.cross_t.noalias() = traj.delta.transpose() * traj.d_threshold;
-      ws.cross_i.noalias() = traj.delta.transpose() * traj.d_initial;
+      // The sensitivities' products with the trajectories and the residual, a block of rows at a
+      // time (the workspace keeps them compact: OperatorTrajectories::codes).
+      ws.cross_t.setZero(mi, mi);
+      ws.cross_i.setZero(mi, mi);
+      Eigen::VectorXd wt = Eigen::VectorXd::Zero(mi), wr = Eigen::VectorXd::Zero(mi);
+      for (Eigen::Index t0 = 0; t0 < n; t0 += kRows) {
+        const Eigen::Index rows = std::min(kRows, n - t0);
+        traj.sensitivity_rows(t0, rows, ws.block_dt, ws.block_di);
+        const auto phi = traj.delta.middleRows(t0, rows);
+        const auto bt = ws.block_dt.topRows(rows), bi = ws.block_di.topRows(rows);
+        ws.cross_t.noalias() += phi.transpose() * bt;
+        ws.cross_i.noalias() += phi.transpose() * bi;
+        wt.noalias() += bt.transpose() * v.r.segment(t0, rows);
+        wr.noalias() += bi.transpose() * v.r.segment(t0, rows);
+      }
       Eigen::MatrixXd c(nf, 2 * nf);  // Phi_f^T A - W, then C
       for (Eigen::Index f = 0; f < nf; ++f) {
         const Eigen::Index i = free[static_cast<std::size_t>(f)];
@@ -191,8 +214,8 @@ void compressed_jacobian(const Data& d, std::span<const double> s, std::span<con
           c(h, f) = ki * (ws.cross_t(l, i) + ri * ws.cross_i(l, i));
           c(h, nf + f) = ki * di * ws.cross_i(l, i);
         }
-        const double wi = traj.d_initial.col(i).dot(v.r);
-        c(f, f) -= traj.d_threshold.col(i).dot(v.r) + ri * wi;
+        const double wi = wr(i);
+        c(f, f) -= wt(i) + ri * wi;
         c(f, nf + f) -= di * wi;
       }
       c = sc.cwiseInverse().asDiagonal() * c;
@@ -211,18 +234,17 @@ void compressed_jacobian(const Data& d, std::span<const double> s, std::span<con
           ws.coupling(l, mi + i) += c(h, nf + f);
         }
       }
-      constexpr Eigen::Index kRows = 256;  // a block of A and of [J r] stays in cache
       ws.block_in.resize(kRows, 2 * mi);
       ws.block_j.resize(kRows, p + 1);
       for (Eigen::Index t0 = 0; t0 < n; t0 += kRows) {
         const Eigen::Index rows = std::min(kRows, n - t0);
         auto in = ws.block_in.topRows(rows);
+        traj.sensitivity_rows(t0, rows, ws.block_dt, ws.block_di);
         for (Eigen::Index i = 0; i < mi; ++i) {
           const double ki = v.k(i), ri = rho[static_cast<std::size_t>(i)],
                        di = thr[static_cast<std::size_t>(i)];
-          in.col(i) = ki * (traj.d_threshold.col(i).segment(t0, rows) +
-                            ri * traj.d_initial.col(i).segment(t0, rows));
-          in.col(mi + i) = (ki * di) * traj.d_initial.col(i).segment(t0, rows);
+          in.col(i) = ki * (ws.block_dt.col(i).head(rows) + ri * ws.block_di.col(i).head(rows));
+          in.col(mi + i) = (ki * di) * ws.block_di.col(i).head(rows);
         }
         auto jb = ws.block_j.topRows(rows);
         jb.leftCols(p).noalias() = traj.delta.middleRows(t0, rows) * ws.coupling;
@@ -259,7 +281,10 @@ const VpValue& vp_evaluate(const Data& d, std::span<const double> s, std::span<c
     std::vector<double> init(m);
     for (std::size_t i = 0; i < m; ++i) init[i] = rho[i] * thr[i];
     const bool sensitivities = with_jacobian || ws.eager;
-    detail::operator_trajectories(thr, init, d.x, sensitivities, traj, d.limits, d.turns);
+    if (sensitivities && !d.limits)
+      detail::operator_trajectories_compact(thr, init, d.x, traj, d.turns);
+    else
+      detail::operator_trajectories(thr, init, d.x, sensitivities, traj, d.limits, d.turns);
     const Eigen::VectorXd lo = Eigen::VectorXd::Zero(mi);
     const Eigen::VectorXd hi =
         Eigen::VectorXd::Constant(mi, std::numeric_limits<double>::infinity());

@@ -109,84 +109,171 @@ void check_slip_limits(const SlipLimits& limits, std::size_t samples) {
     check_factors(limits.turn_upper, limits.turn_lower, "turn limit");
 }
 
-void operator_trajectories(std::span<const double> thresholds,
-                           std::span<const double> initial, std::span<const double> x,
-                           bool sensitivities, OperatorTrajectories& out,
-                           const SlipLimits* limits, std::span<const double> turns) {
+namespace {
+
+// The checks every form of operator_trajectories makes, and the turns: the caller's, or computed
+// into `own`.
+std::span<const double> checked_turns(std::span<const double> thresholds,
+                                      std::span<const double> initial, std::span<const double> x,
+                                      std::span<const double> turns, std::vector<double>& own) {
   const std::size_t m = thresholds.size();
   FRICTION_CHECK(initial.size() == m, "Maxwell Slip: ", initial.size(), " initial deflections for ",
                  m, " operators");
-  const Eigen::Index n = static_cast<Eigen::Index>(x.size());
-  const Eigen::Index mi = static_cast<Eigen::Index>(m);
-  out.delta.resize(n, mi);
-  if (sensitivities) {
-    out.d_threshold.resize(n, mi);
-    out.d_initial.resize(n, mi);
-  }
   for (std::size_t i = 0; i < m; ++i)
     FRICTION_CHECK(std::isfinite(thresholds[i]) && thresholds[i] > 0.0, "Maxwell Slip: threshold[",
                    i, "] = ", thresholds[i], " m must be finite and > 0");
   FRICTION_CHECK(turns.empty() || turns.size() == x.size(), "Maxwell Slip: ", turns.size(),
                  " turns for ", x.size(), " samples");
+  if (!turns.empty()) return turns;
+  own = turns_of(x);
+  return own;
+}
+
+// The nominal box's state before the first sample: the initial deflections clamped to the
+// thresholds, with the sensitivities of the branch taken.
+struct NominalStart {
+  std::vector<double> limit, v, g_threshold, g_initial;
+  NominalStart(std::span<const double> thresholds, std::span<const double> initial)
+      : limit(thresholds.begin(), thresholds.end()),
+        v(initial.begin(), initial.end()),
+        g_threshold(thresholds.size(), 0.0),
+        g_initial(thresholds.size(), 1.0) {
+    for (std::size_t i = 0; i < limit.size(); ++i) {
+      if (v[i] > limit[i])
+        v[i] = limit[i], g_threshold[i] = 1.0, g_initial[i] = 0.0;
+      else if (v[i] < -limit[i])
+        v[i] = -limit[i], g_threshold[i] = -1.0, g_initial[i] = 0.0;
+    }
+  }
+};
+
+// The nominal box's recursion with sensitivities: store(at, delta, d_threshold, d_initial) for
+// every operator i and sample t, at = i N + t.  One loop for the dense and the compact form, so
+// the two cannot differ.
+template <typename Store>
+void nominal_with_sensitivities(std::span<const double> thresholds,
+                                std::span<const double> initial, std::span<const double> x,
+                                std::span<const double> turn, Store&& store) {
+  const std::size_t m = thresholds.size();
+  const Eigen::Index n = static_cast<Eigen::Index>(x.size());
+  NominalStart st(thresholds, initial);
+  for (Eigen::Index t = 0; t < n; ++t) {
+    const double dx =
+        t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
+    for (std::size_t i = 0; i < m; ++i) {
+      const OperatorStep s = step_operator(st.v[i], dx, turn[static_cast<std::size_t>(t)],
+                                           st.limit[i], 1.0, 1.0, 1.0, 1.0);
+      st.v[i] = s.value;
+      st.g_threshold[i] = s.clamped ? s.bound : st.g_threshold[i];
+      st.g_initial[i] = s.clamped ? 0.0 : st.g_initial[i];
+      store(static_cast<Eigen::Index>(i) * n + t, st.v[i], st.g_threshold[i], st.g_initial[i]);
+    }
+  }
+}
+
+}  // namespace
+
+void operator_trajectories(std::span<const double> thresholds,
+                           std::span<const double> initial, std::span<const double> x,
+                           bool sensitivities, OperatorTrajectories& out,
+                           const SlipLimits* limits, std::span<const double> turns) {
+  const std::size_t m = thresholds.size();
   std::vector<double> own_turns;
-  if (turns.empty()) {
-    own_turns = turns_of(x);
-    turns = own_turns;
+  turns = checked_turns(thresholds, initial, x, turns, own_turns);
+  const Eigen::Index n = static_cast<Eigen::Index>(x.size());
+  const Eigen::Index mi = static_cast<Eigen::Index>(m);
+  out.delta.resize(n, mi);
+  out.codes.clear();
+  if (sensitivities) {
+    out.d_threshold.resize(n, mi);
+    out.d_initial.resize(n, mi);
   }
   if (limits) {
     trajectories_under_limits(thresholds, initial, x, sensitivities, out, *limits, turns);
     return;
   }
+  double* delta = out.delta.data();
+  if (sensitivities) {
+    double* dt = out.d_threshold.data();
+    double* di = out.d_initial.data();
+    nominal_with_sensitivities(thresholds, initial, x, turns,
+                               [&](Eigen::Index at, double v, double gt, double gi) {
+                                 delta[at] = v;
+                                 dt[at] = gt;
+                                 di[at] = gi;
+                               });
+    return;
+  }
   // The recursion of one operator is a chain of dependent additions and clamps (about 12 cycles
   // per sample), so the operators are stepped side by side, time outermost: their chains are
   // independent and overlap in the pipeline (3-4x faster at M = 10 than operator by operator).
-  std::vector<double> limit(m), v(m), g_threshold(m, 0.0), g_initial(m, 1.0);
-  for (std::size_t i = 0; i < m; ++i) {
-    limit[i] = thresholds[i];
-    v[i] = initial[i];
-    if (v[i] > limit[i])
-      v[i] = limit[i], g_threshold[i] = 1.0, g_initial[i] = 0.0;
-    else if (v[i] < -limit[i])
-      v[i] = -limit[i], g_threshold[i] = -1.0, g_initial[i] = 0.0;
-  }
-  double* delta = out.delta.data();
+  NominalStart st(thresholds, initial);
+  std::vector<double>& v = st.v;
+  const std::vector<double>& limit = st.limit;
   const std::span<const double> turn = turns;
-  if (!sensitivities) {
-    for (Eigen::Index t = 0; t < n; ++t) {
-      const double dx =
-          t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
-      double* row = delta + t;
-      if (const double o = turn[static_cast<std::size_t>(t)]; o != 0.0) {
-        for (std::size_t i = 0; i < m; ++i) {
-          const double u = std::clamp(v[i] + o, -limit[i], limit[i]) + (dx - o);
-          v[i] = u > limit[i] ? limit[i] : (u < -limit[i] ? -limit[i] : u);
-          row[static_cast<Eigen::Index>(i) * n] = v[i];
-        }
-        continue;
-      }
-      for (std::size_t i = 0; i < m; ++i) {
-        const double u = v[i] + dx;
-        v[i] = u > limit[i] ? limit[i] : (u < -limit[i] ? -limit[i] : u);
-        row[static_cast<Eigen::Index>(i) * n] = v[i];
-      }
-    }
-    return;
-  }
-  double* dt = out.d_threshold.data();
-  double* di = out.d_initial.data();
   for (Eigen::Index t = 0; t < n; ++t) {
     const double dx =
         t > 0 ? x[static_cast<std::size_t>(t)] - x[static_cast<std::size_t>(t - 1)] : 0.0;
+    double* row = delta + t;
+    if (const double o = turn[static_cast<std::size_t>(t)]; o != 0.0) {
+      for (std::size_t i = 0; i < m; ++i) {
+        const double u = std::clamp(v[i] + o, -limit[i], limit[i]) + (dx - o);
+        v[i] = u > limit[i] ? limit[i] : (u < -limit[i] ? -limit[i] : u);
+        row[static_cast<Eigen::Index>(i) * n] = v[i];
+      }
+      continue;
+    }
     for (std::size_t i = 0; i < m; ++i) {
-      const OperatorStep s =
-          step_operator(v[i], dx, turn[static_cast<std::size_t>(t)], limit[i], 1.0, 1.0, 1.0, 1.0);
-      v[i] = s.value;
-      g_threshold[i] = s.clamped ? s.bound : g_threshold[i];
-      g_initial[i] = s.clamped ? 0.0 : g_initial[i];
-      const Eigen::Index at = static_cast<Eigen::Index>(i) * n + t;
-      delta[at] = v[i];
-      dt[at] = g_threshold[i];
-      di[at] = g_initial[i];
+      const double u = v[i] + dx;
+      v[i] = u > limit[i] ? limit[i] : (u < -limit[i] ? -limit[i] : u);
+      row[static_cast<Eigen::Index>(i) * n] = v[i];
+    }
+  }
+}
+
+void operator_trajectories_compact(std::span<const double> thresholds,
+                                   std::span<const double> initial, std::span<const double> x,
+                                   OperatorTrajectories& out, std::span<const double> turns) {
+  std::vector<double> own_turns;
+  turns = checked_turns(thresholds, initial, x, turns, own_turns);
+  const Eigen::Index n = static_cast<Eigen::Index>(x.size());
+  out.delta.resize(n, static_cast<Eigen::Index>(thresholds.size()));
+  out.d_threshold.resize(0, 0);
+  out.d_initial.resize(0, 0);
+  out.codes.resize(x.size() * thresholds.size());
+  double* delta = out.delta.data();
+  std::uint8_t* codes = out.codes.data();
+  nominal_with_sensitivities(thresholds, initial, x, turns,
+                             [&](Eigen::Index at, double v, double gt, double gi) {
+                               delta[at] = v;
+                               // gi != 0: never at a bound (then gt = 0); else gt is +-1.
+                               codes[at] = gi != 0.0 ? OperatorTrajectories::kFree
+                                           : gt > 0.0 ? OperatorTrajectories::kUpper
+                                                      : OperatorTrajectories::kLower;
+                             });
+}
+
+void OperatorTrajectories::sensitivity_rows(Eigen::Index t0, Eigen::Index rows,
+                                            Eigen::Ref<Eigen::MatrixXd> dt,
+                                            Eigen::Ref<Eigen::MatrixXd> di) const {
+  const Eigen::Index n = delta.rows(), m = delta.cols();
+  FRICTION_CHECK(t0 >= 0 && rows >= 0 && t0 + rows <= n && dt.rows() >= rows &&
+                     di.rows() >= rows && dt.cols() == m && di.cols() == m,
+                 "OperatorTrajectories: rows ", t0, " + ", rows, " of ", n, " into ", dt.rows(),
+                 " x ", dt.cols(), " and ", di.rows(), " x ", di.cols());
+  if (codes.empty()) {
+    FRICTION_CHECK(d_threshold.rows() == n && d_initial.rows() == n,
+                   "OperatorTrajectories: no sensitivities were computed");
+    dt.topRows(rows) = d_threshold.middleRows(t0, rows);
+    di.topRows(rows) = d_initial.middleRows(t0, rows);
+    return;
+  }
+  static constexpr double kThreshold[] = {0.0, 1.0, -1.0}, kInitial[] = {1.0, 0.0, 0.0};
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const std::uint8_t* c = codes.data() + i * n + t0;
+    for (Eigen::Index t = 0; t < rows; ++t) {
+      dt(t, i) = kThreshold[c[t]];
+      di(t, i) = kInitial[c[t]];
     }
   }
 }

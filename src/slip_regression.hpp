@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <vector>
 
@@ -33,6 +34,19 @@ struct OperatorTrajectories {
   Eigen::MatrixXd delta;        ///< N x M: delta_i(t), unit stiffness
   Eigen::MatrixXd d_threshold;  ///< d delta_i(t) / d Delta_i with delta_i(0) held fixed
   Eigen::MatrixXd d_initial;    ///< d delta_i(t) / d delta_i(0)
+  /// The same two sensitivities in compact form (operator_trajectories_compact; d_threshold and
+  /// d_initial are then left empty), N x M column-major: in the nominal box they take only three
+  /// pairs of values, (0, 1) until the operator first meets a bound, then (1, 0) or (-1, 0) as the
+  /// bound it met last is the upper or the lower, so one byte holds both where the dense form
+  /// takes sixteen.  A fit that keeps its workspace between evaluations keeps M bytes per sample
+  /// instead of 16 M.
+  std::vector<std::uint8_t> codes;
+  static constexpr std::uint8_t kFree = 0, kUpper = 1, kLower = 2;
+
+  /// Rows [t0, t0 + rows) of d_threshold and d_initial into the top rows of `dt` and `di` (at
+  /// least `rows` x M), from whichever form was computed.
+  void sensitivity_rows(Eigen::Index t0, Eigen::Index rows, Eigen::Ref<Eigen::MatrixXd> dt,
+                        Eigen::Ref<Eigen::MatrixXd> di) const;
 };
 
 /// Slip limits that change from sample to sample: operator i is clamped to
@@ -74,6 +88,12 @@ void operator_trajectories(std::span<const double> thresholds,
                            bool sensitivities, OperatorTrajectories& out,
                            const SlipLimits* limits = nullptr,
                            std::span<const double> turns = {});
+
+/// operator_trajectories with sensitivities, in the nominal box, the sensitivities written as
+/// OperatorTrajectories::codes: the same recursion, the same numbers once decoded.
+void operator_trajectories_compact(std::span<const double> thresholds,
+                                   std::span<const double> initial, std::span<const double> x,
+                                   OperatorTrajectories& out, std::span<const double> turns = {});
 
 OperatorTrajectories operator_trajectories(std::span<const double> thresholds,
                                            std::span<const double> initial,

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <iostream>
 #include <limits>
 #include <random>
@@ -244,6 +245,59 @@ TEST(Nlr, OperatorTrajectoriesAreTheJetRunOfTheModel) {
   detail::OperatorTrajectories plain;
   detail::operator_trajectories(thr, init, rec.displacement, false, plain);
   EXPECT_TRUE(plain.delta == tr.delta);
+}
+
+TEST(Nlr, CompactSensitivitiesDecodeToTheJetRunInAnyBlockOfRows) {
+  // operator_trajectories_compact keeps one byte per operator and sample; decoded a block of rows
+  // at a time (as the NLR fit's compressed Jacobian reads them) it must give, bit for bit, the
+  // sensitivities of autodiff through MaxwellSlip<Jet<double, 2>>, for blocks of any size and at
+  // any offset, with initial deflections beyond, at and inside the thresholds.
+  const auto sys = four_operator_system();
+  const auto rec = synthetic_record(sys, 1300, 20e-6, 1, kSigma, 7, {0, 0, 0, 0}, nullptr);
+  const std::vector<double> thr{0.9e-6, 2.5e-6, 5e-6, 2.5e-5};
+  const std::vector<double> init{2e-6, -2.5e-6, 1e-6, -1e-5};
+  detail::OperatorTrajectories compact;
+  detail::operator_trajectories_compact(thr, init, rec.displacement, compact);
+  ASSERT_EQ(compact.codes.size(), rec.size() * thr.size());
+  EXPECT_EQ(compact.d_threshold.size(), 0);  // the dense form is not kept
+  const Eigen::Index n = static_cast<Eigen::Index>(rec.size()), m = 4;
+  Eigen::MatrixXd jet_delta(n, m), jet_threshold(n, m), jet_initial(n, m);
+  MaxwellSlip<ceres::Jet<double, 2>> model = seeded_operators(thr, init, 0.0);
+  using Jet = ceres::Jet<double, 2>;
+  for (Eigen::Index t = 0; t < n; ++t) {
+    const std::size_t tu = static_cast<std::size_t>(t);
+    const double dx = t > 0 ? rec.displacement[tu] - rec.displacement[tu - 1] : 0.0;
+    const double turn = turn_increment(std::span<const double>(rec.displacement), tu);
+    model.step(Motion<Jet>{Jet(dx), Jet(0.0), Jet(0.0), Jet(1.0), Jet(0.0), Jet(turn)});
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const Jet& j = model.deflections()[static_cast<std::size_t>(i)];
+      jet_delta(t, i) = j.a;
+      jet_threshold(t, i) = j.v[0];
+      jet_initial(t, i) = j.v[1];
+    }
+  }
+  EXPECT_TRUE(compact.delta == jet_delta);
+  int codes_seen[3] = {0, 0, 0};
+  for (std::uint8_t c : compact.codes) ++codes_seen[c];
+  EXPECT_GT(codes_seen[detail::OperatorTrajectories::kFree], 0);  // every form was decoded
+  EXPECT_GT(codes_seen[detail::OperatorTrajectories::kUpper], 0);
+  EXPECT_GT(codes_seen[detail::OperatorTrajectories::kLower], 0);
+  // Blocks of uneven sizes into buffers taller than the block; the dense form the same way.
+  detail::OperatorTrajectories dense;
+  detail::operator_trajectories(thr, init, rec.displacement, true, dense);
+  Eigen::MatrixXd dt = Eigen::MatrixXd::Constant(300, m, 7.0), di = dt;
+  const Eigen::Index sizes[] = {1, 7, 256, 300, 13};
+  Eigen::Index t0 = 0;
+  for (std::size_t k = 0; t0 < n; ++k) {
+    const Eigen::Index rows = std::min(sizes[k % 5], n - t0);
+    for (const detail::OperatorTrajectories* tr : {&compact, &dense}) {
+      tr->sensitivity_rows(t0, rows, dt, di);
+      ASSERT_TRUE(dt.topRows(rows) == jet_threshold.middleRows(t0, rows)) << t0 << " " << rows;
+      ASSERT_TRUE(di.topRows(rows) == jet_initial.middleRows(t0, rows)) << t0 << " " << rows;
+    }
+    t0 += rows;
+  }
+  EXPECT_THROW(compact.sensitivity_rows(n - 5, 6, dt, di), InvalidParameter);
 }
 
 TEST(Nlr, OperatorTrajectoriesUnderLimitsAreTheJetRunOfTheModel) {
