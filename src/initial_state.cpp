@@ -78,11 +78,15 @@ class OneOperator {
         taps_(taps) {
     xi_.resize(n_);
     for (Eigen::Index t = 0; t < n_; ++t) xi_(t) = x[static_cast<std::size_t>(t)] - x[0];
-    eta_ = filtered(xi_, taps);
     ref_top_ = single_trajectory(x, threshold, threshold);
     ref_bottom_ = single_trajectory(x, threshold, -threshold);
-    f_top_ = filtered(ref_top_, taps);
-    f_bottom_ = filtered(ref_bottom_, taps);
+    if (lags_ > 0) {
+      eta_ = filtered(xi_, taps);
+      f_top_ = filtered(ref_top_, taps);
+      f_bottom_ = filtered(ref_bottom_, taps);
+    } else {
+      gain_ = taps(0);
+    }
     run_max_.resize(n_);
     run_min_.resize(n_);
     std::vector<double> breaks{-threshold, threshold};
@@ -137,14 +141,16 @@ class OneOperator {
     std::vector<double> p1(nm, 0.0), p2(nm, 0.0), s_top(nm, 0.0), s_bottom(nm, 0.0);
     for (std::size_t k = 0; k + 1 < nm; ++k) {
       const Eigen::Index a = marks_[k], len = marks_[k + 1] - a;
-      const auto r = y.segment(a, len) - eta_.segment(a, len);
+      const auto r = y.segment(a, len) - gain_ * eta().segment(a, len);
       p1[k + 1] = p1[k] + r.sum();
       p2[k + 1] = p2[k] + r.squaredNorm();
     }
     for (std::size_t k = nm - 1; k-- > 0;) {
       const Eigen::Index a = marks_[k], len = marks_[k + 1] - a;
-      s_top[k] = s_top[k + 1] + (y.segment(a, len) - f_top_.segment(a, len)).squaredNorm();
-      s_bottom[k] = s_bottom[k + 1] + (y.segment(a, len) - f_bottom_.segment(a, len)).squaredNorm();
+      const auto y_seg = y.segment(a, len);
+      s_top[k] = s_top[k + 1] + (y_seg - gain_ * filtered_ref(true).segment(a, len)).squaredNorm();
+      s_bottom[k] =
+          s_bottom[k + 1] + (y_seg - gain_ * filtered_ref(false).segment(a, len)).squaredNorm();
     }
     double best_d = 0.0, best_cost = std::numeric_limits<double>::infinity();
     for (const Piece& pc : pieces_) {
@@ -202,15 +208,15 @@ class OneOperator {
     d = std::clamp(d, -threshold_, threshold_);
     const auto [tau, top] = saturation(d);
     const Eigen::VectorXd& ref = top ? ref_top_ : ref_bottom_;
-    const Eigen::VectorXd& f_ref = top ? f_top_ : f_bottom_;
+    const Eigen::VectorXd& f_ref = filtered_ref(top);
     const Eigen::Index end = std::min(n_, tau + lags_);
     const double level = big_theta_ * d;
     if (add) {
-      out.head(tau).array() += eta_.head(tau).array() + level;
-      out.tail(n_ - end) += f_ref.tail(n_ - end);
+      out.head(tau).array() += gain_ * eta().head(tau).array() + level;
+      out.tail(n_ - end) += gain_ * f_ref.tail(n_ - end);
     } else {
-      out.head(tau).array() = eta_.head(tau).array() + level;
-      out.tail(n_ - end) = f_ref.tail(n_ - end);
+      out.head(tau).array() = gain_ * eta().head(tau).array() + level;
+      out.tail(n_ - end) = gain_ * f_ref.tail(n_ - end);
     }
     for (Eigen::Index t = tau; t < end; ++t) {
       double f = 0.0;
@@ -248,6 +254,18 @@ class OneOperator {
   double threshold_, big_theta_;
   Eigen::RowVectorXd taps_;
   Eigen::VectorXd xi_, eta_, ref_top_, ref_bottom_, f_top_, f_bottom_, run_max_, run_min_;
+  // The filtered signals sum_j taps_j s(t - j) of xi and of the two reference trajectories, read
+  // as gain_ times eta() and filtered_ref().  A filter of one tap (NLR's) only scales them: they
+  // are not stored (eta_, f_top_ and f_bottom_ stay empty) and gain_ is that tap, the same numbers
+  // as filtered() gives (it adds the one product to 0); with more taps they are stored and gain_
+  // is 1.  An operator at the travel has the whole record for its prefix, and these three were
+  // 24 bytes a sample of a diagnosis' peak.
+  double gain_ = 1.0;
+  const Eigen::VectorXd& eta() const { return lags_ > 0 ? eta_ : xi_; }
+  const Eigen::VectorXd& filtered_ref(bool top) const {
+    if (lags_ > 0) return top ? f_top_ : f_bottom_;
+    return top ? ref_top_ : ref_bottom_;
+  }
   std::vector<Piece> pieces_;
   std::vector<Eigen::Index> marks_;  // sorted, from 0 to n
 };
