@@ -707,7 +707,7 @@ TEST(Extensions, UncachedStepsLeaveTheFilterCacheAlone) {
   const std::vector<double> first = run(time, x);  // fills the cache with this record's filter
   auto& cache = friction::detail::filtered_displacement();
   ASSERT_TRUE(cache.valid);
-  ASSERT_EQ(cache.time.size(), time.size());
+  ASSERT_EQ(cache.samples, time.size());
   const std::size_t capacity = cache.velocity.capacity();
   std::vector<double> fine_time, fine_x;  // twice as fine: another length, another filter
   for (std::size_t k = 0; k + 1 < time.size(); ++k) {
@@ -722,11 +722,53 @@ TEST(Extensions, UncachedStepsLeaveTheFilterCacheAlone) {
   }
   EXPECT_FALSE(cache.busy);
   EXPECT_TRUE(cache.valid);
-  EXPECT_EQ(cache.time.size(), time.size()) << "the fine grid went into the cache";
+  EXPECT_EQ(cache.samples, time.size()) << "the fine grid went into the cache";
   EXPECT_EQ(cache.velocity.capacity(), capacity);
   EXPECT_EQ(run(fine_time, fine_x), fine) << "the uncached run differs from a cached one";
   // The cache now holds the fine grid's filter: the first record again, the first force.
   EXPECT_EQ(run(time, x), first);
+}
+
+TEST(Extensions, TheFilterCacheSeesAChangeOfOneSample) {
+  // The thread's filter cache is reused when a record's fingerprint matches the last one's: a
+  // record of the same length that differs in one time stamp or one displacement sample, changed
+  // in place in the same buffers, must be filtered anew, and so simulate as a run that never
+  // reads the cache does.  With the windows given, as a fit gives them (chosen anew, they might
+  // differ for the changed record and hide a stale cache).
+  std::vector<double> time, x;
+  friction::testing::test_excitation(3000, 1e-3, 20e-6, time, x);
+  ExtensionParameters<double> p;
+  p.viscous = {{10.0}};
+  p.inertia = {{0.5}};
+  MaxwellSlipParameters<double> base;
+  base.stiffness = {4e4, 1e4};
+  base.threshold = {2e-6, 3e-5};
+  const friction::DerivativeWindows windows = friction::record_derivative_windows(time, x);
+  auto run = [&] {
+    Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(base), p);
+    return friction::simulate_extended(model, std::span<const double>(time),
+                                       std::span<const double>(x), {}, &windows);
+  };
+  auto uncached = [&] {
+    const friction::detail::UncachedSteps keep_out;
+    return run();
+  };
+  const std::vector<double> first = run();  // fills the cache
+  ASSERT_TRUE(friction::detail::filtered_displacement().valid);
+  ASSERT_EQ(run(), first);  // and reads it
+  const std::size_t k = 1234;
+  const double x_k = x[k], time_k = time[k];
+  x[k] += 1e-9;  // a nanometre at one sample
+  const std::vector<double> moved = run();
+  EXPECT_EQ(moved, uncached()) << "a changed displacement sample read the old filter";
+  EXPECT_NE(moved, first);
+  x[k] = x_k;
+  time[k] += 1e-7;  // a tenth of a microsecond at one stamp
+  const std::vector<double> shifted = run();
+  EXPECT_EQ(shifted, uncached()) << "a changed time stamp read the old filter";
+  EXPECT_NE(shifted, first);
+  time[k] = time_k;
+  EXPECT_EQ(run(), first);
 }
 
 }  // namespace
