@@ -193,7 +193,9 @@ void compressed_jacobian(const Data& d, std::span<const double> s, std::span<con
       // time (the workspace keeps them compact: OperatorTrajectories::codes).
       ws.cross_t.setZero(mi, mi);
       ws.cross_i.setZero(mi, mi);
-      Eigen::VectorXd wt = Eigen::VectorXd::Zero(mi), wr = Eigen::VectorXd::Zero(mi);
+      // With the residual: the second Golub-Pereyra term's W before the stiffness factor.
+      Eigen::VectorXd w_threshold = Eigen::VectorXd::Zero(mi);
+      Eigen::VectorXd w_initial = Eigen::VectorXd::Zero(mi);
       for (Eigen::Index t0 = 0; t0 < n; t0 += kRows) {
         const Eigen::Index rows = std::min(kRows, n - t0);
         traj.sensitivity_rows(t0, rows, ws.block_dt, ws.block_di);
@@ -201,8 +203,8 @@ void compressed_jacobian(const Data& d, std::span<const double> s, std::span<con
         const auto bt = ws.block_dt.topRows(rows), bi = ws.block_di.topRows(rows);
         ws.cross_t.noalias() += phi.transpose() * bt;
         ws.cross_i.noalias() += phi.transpose() * bi;
-        wt.noalias() += bt.transpose() * v.r.segment(t0, rows);
-        wr.noalias() += bi.transpose() * v.r.segment(t0, rows);
+        w_threshold.noalias() += bt.transpose() * v.r.segment(t0, rows);
+        w_initial.noalias() += bi.transpose() * v.r.segment(t0, rows);
       }
       Eigen::MatrixXd c(nf, 2 * nf);  // Phi_f^T A - W, then C
       for (Eigen::Index f = 0; f < nf; ++f) {
@@ -214,8 +216,8 @@ void compressed_jacobian(const Data& d, std::span<const double> s, std::span<con
           c(h, f) = ki * (ws.cross_t(l, i) + ri * ws.cross_i(l, i));
           c(h, nf + f) = ki * di * ws.cross_i(l, i);
         }
-        const double wi = wr(i);
-        c(f, f) -= wt(i) + ri * wi;
+        const double wi = w_initial(i);
+        c(f, f) -= w_threshold(i) + ri * wi;
         c(f, nf + f) -= di * wi;
       }
       c = sc.cwiseInverse().asDiagonal() * c;
