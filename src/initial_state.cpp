@@ -134,24 +134,15 @@ class OneOperator {
   /// Global minimiser over d of sum_t (y(t) - sum_j taps_j delta(t-j; d))^2.
   double minimise(const Eigen::Ref<const Eigen::VectorXd>& y) const {
     // Prefix sums of r = y - eta and r^2, and suffix sums of the squared residuals of either
-    // reference trajectory, at the marks only: each segment between marks is a vectorised
-    // reduction (a running sum over every sample is a chain of dependent additions, which was
-    // most of this function's time).
+    // reference trajectory, at the marks only (segment_sums).
     const std::size_t nm = marks_.size();
-    std::vector<double> p1(nm, 0.0), p2(nm, 0.0), s_top(nm, 0.0), s_bottom(nm, 0.0);
-    for (std::size_t k = 0; k + 1 < nm; ++k) {
-      const Eigen::Index a = marks_[k], len = marks_[k + 1] - a;
-      const auto r = y.segment(a, len) - gain_ * eta().segment(a, len);
-      p1[k + 1] = p1[k] + r.sum();
-      p2[k + 1] = p2[k] + r.squaredNorm();
-    }
+    p1_.assign(nm, 0.0), p2_.assign(nm, 0.0), s_top_.assign(nm, 0.0), s_bottom_.assign(nm, 0.0);
+    segment_sums(y);
     for (std::size_t k = nm - 1; k-- > 0;) {
-      const Eigen::Index a = marks_[k], len = marks_[k + 1] - a;
-      const auto y_seg = y.segment(a, len);
-      s_top[k] = s_top[k + 1] + (y_seg - gain_ * filtered_ref(true).segment(a, len)).squaredNorm();
-      s_bottom[k] =
-          s_bottom[k + 1] + (y_seg - gain_ * filtered_ref(false).segment(a, len)).squaredNorm();
+      s_top_[k] += s_top_[k + 1];
+      s_bottom_[k] += s_bottom_[k + 1];
     }
+    const std::vector<double>&p1 = p1_, &p2 = p2_, &s_top = s_top_, &s_bottom = s_bottom_;
     double best_d = 0.0, best_cost = std::numeric_limits<double>::infinity();
     for (const Piece& pc : pieces_) {
       // cost(d) = qa d^2 + qb d + qc on [lo, hi]
@@ -244,6 +235,42 @@ class OneOperator {
   }
 
  private:
+  // The four sums of minimise over every segment between marks, in one pass: p1_ and p2_ get
+  // the running prefix sums of r = y - gain eta and r^2 at the marks, s_top_ and s_bottom_ each
+  // segment's own sum of (y - gain ref)^2 (minimise accumulates them from the end).  Each sum
+  // runs in two lanes, even and odd samples, joined at the segment's end: the lanes are
+  // independent chains of additions that the compiler keeps in one vector register.  Where the
+  // motion rises smoothly from rest every sample is a new running extreme and a mark, and a
+  // segment is one sample long: the four reductions per segment that this pass replaces then
+  // cost their set-up at every sample (most of an initial-state estimate on such a record).
+  void segment_sums(const Eigen::Ref<const Eigen::VectorXd>& y) const {
+    const double* yp = y.data();
+    const double* ep = eta().data();
+    const double* tp = filtered_ref(true).data();
+    const double* bp = filtered_ref(false).data();
+    const double g = gain_;
+    for (std::size_t k = 0; k + 1 < marks_.size(); ++k) {
+      const Eigen::Index a = marks_[k], b = marks_[k + 1];
+      double r1[2] = {0, 0}, r2[2] = {0, 0}, st[2] = {0, 0}, sb[2] = {0, 0};
+      Eigen::Index t = a;
+      for (; t + 1 < b; t += 2)
+        for (int l = 0; l < 2; ++l) {
+          const double yv = yp[t + l], r = yv - g * ep[t + l];
+          const double ut = yv - g * tp[t + l], ub = yv - g * bp[t + l];
+          r1[l] += r, r2[l] += r * r, st[l] += ut * ut, sb[l] += ub * ub;
+        }
+      if (t < b) {
+        const double yv = yp[t], r = yv - g * ep[t];
+        const double ut = yv - g * tp[t], ub = yv - g * bp[t];
+        r1[0] += r, r2[0] += r * r, st[0] += ut * ut, sb[0] += ub * ub;
+      }
+      p1_[k + 1] = p1_[k] + (r1[0] + r1[1]);
+      p2_[k + 1] = p2_[k] + (r2[0] + r2[1]);
+      s_top_[k] = st[0] + st[1];
+      s_bottom_[k] = sb[0] + sb[1];
+    }
+  }
+
   struct Piece {
     double lo, hi;
     Eigen::Index tau;
@@ -268,6 +295,9 @@ class OneOperator {
   }
   std::vector<Piece> pieces_;
   std::vector<Eigen::Index> marks_;  // sorted, from 0 to n
+  // minimise's sums at the marks, kept between calls (an estimate calls it thousands of times;
+  // each OneOperator belongs to one estimate, on one thread).
+  mutable std::vector<double> p1_, p2_, s_top_, s_bottom_;
 };
 
 // One column per operator, each as long as that operator's prefix, in one buffer.  The dense
