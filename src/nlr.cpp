@@ -864,7 +864,49 @@ void dictionary_operators(Data& d, std::span<const std::vector<double>> added = 
   Eigen::MatrixXd block(kRows, pi + 1);
   std::vector<double> z(p_operators);
   for (std::size_t c = 0; c < p_operators; ++c) z[c] = cols[c].second * thr[cols[c].first];
+  // A threshold's three columns (virgin, started at either bound) are equal to the bit once its
+  // trajectories have met (the range has covered twice the threshold: all three at the same
+  // bound), and from then on they stay equal, the same recursion on the same input.  So a block
+  // of rows holds only the columns not yet merged into their threshold's virgin column, and its
+  // products are spread over the merged ones: on a record whose range soon covers most of the
+  // grid that is a third of the columns and a ninth of the products (the block's Gram matrix had
+  // been the largest single cost of an NLR fit on the strokes bench record).
+  std::vector<Eigen::Index> unique_of(p + 1), virgin_of(p_operators);
+  for (std::size_t c = 0; c < p_operators; ++c)
+    virgin_of[c] = cols[c].second == 0.0 ? static_cast<Eigen::Index>(c) : virgin_of[c - 1];
+  std::vector<char> merged(p_operators, 0);
+  std::vector<Eigen::Index> unique;  // the full columns that the block holds, in order
+  Eigen::MatrixXd block_gram;
+  const auto start_block = [&] {
+    for (std::size_t c = 0; c < p_operators; ++c)
+      if (!merged[c] && cols[c].second != 0.0 &&
+          z[c] == z[static_cast<std::size_t>(virgin_of[c])])
+        merged[c] = 1;
+    unique.clear();
+    for (std::size_t c = 0; c <= p; ++c) {
+      if (c < p_operators && merged[c]) {
+        unique_of[c] = unique_of[static_cast<std::size_t>(virgin_of[c])];
+        continue;
+      }
+      unique_of[c] = static_cast<Eigen::Index>(unique.size());
+      unique.push_back(static_cast<Eigen::Index>(c));
+    }
+  };
+  const auto add_block = [&](Eigen::Index rows) {
+    const Eigen::Index nu = static_cast<Eigen::Index>(unique.size());
+    block_gram.setZero(nu, nu);
+    block_gram.selfadjointView<Eigen::Lower>().rankUpdate(
+        block.topLeftCorner(rows, nu).transpose());
+    for (Eigen::Index a = 0; a <= pi; ++a) {
+      const Eigen::Index ua = unique_of[static_cast<std::size_t>(a)];
+      for (Eigen::Index b = 0; b <= a; ++b) {
+        const Eigen::Index ub = unique_of[static_cast<std::size_t>(b)];
+        gram(a, b) += ua >= ub ? block_gram(ua, ub) : block_gram(ub, ua);
+      }
+    }
+  };
   Eigen::Index rows = 0;
+  bool block_open = false;
   for (std::size_t t = 0; t < n; ++t) {
     const double dx = t > 0 ? d.x[t] - d.x[t - 1] : 0.0;
     const double turn = d.turns[t];
@@ -882,16 +924,24 @@ void dictionary_operators(Data& d, std::span<const std::vector<double>> added = 
         z[c] = std::clamp(z[c] + dx, -down * a, up * a);
     }
     if (t % stride != 0) continue;
-    for (std::size_t c = 0; c < p_operators; ++c) block(rows, static_cast<Eigen::Index>(c)) = z[c];
-    for (std::size_t j = 0; j < added.size(); ++j)
-      block(rows, static_cast<Eigen::Index>(p_operators + j)) = added[j][t];
-    block(rows, pi) = d.y(static_cast<Eigen::Index>(t));
+    if (!block_open) start_block(), block_open = true;
+    for (std::size_t u = 0; u < unique.size(); ++u) {
+      const std::size_t c = static_cast<std::size_t>(unique[u]);
+      const Eigen::Index ui = static_cast<Eigen::Index>(u);
+      if (c < p_operators)
+        block(rows, ui) = z[c];
+      else if (c < p)
+        block(rows, ui) = added[c - p_operators][t];
+      else
+        block(rows, ui) = d.y(static_cast<Eigen::Index>(t));
+    }
     if (++rows == kRows || t + stride >= n) {
-      gram.selfadjointView<Eigen::Lower>().rankUpdate(block.topRows(rows).transpose());
+      add_block(rows);
       rows = 0;
+      block_open = false;
     }
   }
-  if (rows > 0) gram.selfadjointView<Eigen::Lower>().rankUpdate(block.topRows(rows).transpose());
+  if (rows > 0) add_block(rows);
   Eigen::VectorXd scale(pi);
   for (Eigen::Index c = 0; c < pi; ++c) scale(c) = gram(c, c) > 0.0 ? std::sqrt(gram(c, c)) : 1.0;
   Eigen::MatrixXd scaled = gram.topLeftCorner(pi, pi).selfadjointView<Eigen::Lower>();
