@@ -7,6 +7,7 @@
 
 #include "diagnose_stages.hpp"
 #include "friction/metrics.hpp"
+#include "parallel_for.hpp"
 #include "position_origin.hpp"
 
 namespace friction {
@@ -74,6 +75,22 @@ Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
   dx.baseline_seconds = b.seconds;
   dx.warnings = b.warnings;
   dx.operator_drop = b.operator_drop;
+  // The floors of rule (c) (diagnose.hpp, section 4): besides the force noise's, what the
+  // displacement's sampling does to the baseline's force on each record, its sensor's error and
+  // its stepping once per sample (the initial state on the validation record estimated there,
+  // as the validation error's is).
+  const std::vector<double> rho_v =
+      estimate_relative_deflections(b.state.base, b.state.ext, val, nullptr);
+  double floors[4] = {};
+  detail::parallel_for(o.measurement_floor ? 4 : 0, o.threads, [&](std::size_t i) {
+    const Record& r = i % 2 == 0 ? est : val;
+    const std::vector<double>& rho = i % 2 == 0 ? b.state.rho : rho_v;
+    floors[i] = i < 2 ? sensor_floor_rss(b.state, rho, r, 1) : stepping_floor_rss(b.state, rho, r);
+  });
+  dx.estimation_measurement_floor_percent =
+      100.0 * (floors[0] + floors[2]) / sum_of_squares(est.force);
+  dx.validation_measurement_floor_percent =
+      100.0 * (floors[1] + floors[3]) / sum_of_squares(val.force);
   const Context c{
       est,
       val,
@@ -81,6 +98,7 @@ Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
       n,
       sigma,
       floor_rss,
+      floors[0] + floors[2],
       b.state.ext.reference_force,
       b.operator_drop,
       std::max(b.state.rss - floor_rss, 0.0),
@@ -91,6 +109,7 @@ Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
                             deflections_from_relative(b.state.base, b.state.rho, b.state.ext), est),
           b.state.ext.reference_force),
       noise_floor_rss_sss_percent(val.force, estimate_white_noise_sigma(val.force)),
+      dx.validation_measurement_floor_percent,
       x_ref};
 
   if (o.baseline == "lugre") {
@@ -107,8 +126,6 @@ Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
     dx.baseline_model = b.nlr.model;
     dx.baseline_validation_percent = b.state.validation;
     dx.baseline_estimation_percent = 100.0 * b.state.rss / sum_of_squares(est.force);
-    const std::vector<double> rho_v =
-        estimate_relative_deflections(b.state.base, b.state.ext, val, nullptr);
     dx.baseline_evidence = gather_evidence(b.state.base, b.state.ext, val, rho_v);
   }
 

@@ -6,6 +6,8 @@
 
 #include "diagnose_stages.hpp"
 #include "friction/identification.hpp"
+#include "friction/signals.hpp"
+#include "parallel_for.hpp"
 #include "sample_statistics.hpp"
 
 namespace friction::diagnose_detail {
@@ -40,7 +42,110 @@ double one_more_operator(const Record& est, const IdentifiedModel& nlr, std::siz
   return 0.0;
 }
 
+// The model of `s` from `initial` on a record with its derivative windows `w`: the force at every
+// sample, without the thread's filter cache (a replica's filter is not asked for again).
+std::vector<double> slip_force(const State& s, std::span<const double> initial, const Record& r,
+                               const DerivativeWindows& w) {
+  Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(s.base), s.ext, 2);
+  set_extended_slip_state(model, initial);
+  std::vector<double> out(r.size());
+  const detail::UncachedSteps uncached;
+  for_each_extended_step(
+      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
+      std::span<const double>(r.normal), &w,
+      [&](std::size_t k, const ExtendedMotion<double>&, double force) { out[k] = force; },
+      std::span<const double>(r.measured_displacement));
+  return out;
+}
+
+// The model of `s` from `initial` run on `r` refined to `steps` steps per sample (the displacement
+// by interpolate_displacement, the normal force linearly), its force at the record's samples.
+// The grid is made without a Record (no force, no conditioning): at 10^6 samples the fine record
+// and the whole runs on it (force, regime, velocity, acceleration) were a quarter of the
+// diagnosis's memory, and only the force at the record's own samples is read.
+std::vector<double> refined_force(const State& s, std::span<const double> initial, const Record& r,
+                                  std::size_t steps) {
+  const std::size_t n = r.size();
+  const std::size_t fine_n = steps * (n - 1) + 1;
+  std::vector<double> fine_time, fine_x, fine_normal;
+  fine_time.reserve(fine_n);
+  fine_x.reserve(fine_n);
+  if (!r.normal.empty()) fine_normal.reserve(fine_n);
+  for (std::size_t k = 0; k + 1 < n; ++k)
+    for (std::size_t j = 0; j < steps; ++j) {
+      const double w = static_cast<double>(j) / static_cast<double>(steps);
+      const double t = r.time[k] + w * (r.time[k + 1] - r.time[k]);
+      fine_time.push_back(t);
+      fine_x.push_back(interpolate_displacement(std::span<const double>(r.time),
+                                                std::span<const double>(r.displacement), k, t));
+      if (!r.normal.empty()) fine_normal.push_back((1 - w) * r.normal[k] + w * r.normal[k + 1]);
+    }
+  fine_time.push_back(r.time.back());
+  fine_x.push_back(r.displacement.back());
+  if (!r.normal.empty()) fine_normal.push_back(r.normal.back());
+  Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(s.base), s.ext, 2);
+  set_extended_slip_state(model, initial);
+  std::vector<double> out(n);
+  const detail::UncachedSteps uncached;  // the filter of the fine grid is not asked for again
+  for_each_extended_step(
+      model, std::span<const double>(fine_time), std::span<const double>(fine_x),
+      std::span<const double>(fine_normal), nullptr,
+      [&](std::size_t k, const ExtendedMotion<double>&, double force) {
+        if (k % steps == 0) out[k / steps] = force;
+      },
+      std::span<const double>());
+  return out;
+}
+
+// Replicas of the sensor floor.  Its relative sampling error is about sqrt(2 / 8) = 0.5 for a
+// floor made by a few stiff operators at a few reversals, less where many samples contribute: a
+// floor, unlike a standard error, only needs its order of magnitude.  The seeds are those of the
+// covariance's replicas (extension_families.hpp), whose windows the rule then need not choose
+// again for the estimation record.
+constexpr std::size_t kSensorReplicas = 8;
+
 }  // namespace
+
+double sensor_floor_rss(const State& s, const std::vector<double>& rho, const Record& r,
+                        unsigned threads) {
+  if (r.size() < 2 || s.base.size() == 0) return 0.0;
+  const Resolution sensor = estimate_displacement_resolution(r.measured());
+  const std::vector<double> initial = deflections_from_relative(s.base, rho, s.ext);
+  const std::vector<double> own = slip_force(s, initial, r, record_derivative_windows(r));
+  std::vector<double> sums(kSensorReplicas, 0.0);
+  std::vector<char> made(kSensorReplicas, 0);
+  detail::parallel_for(kSensorReplicas, threads, [&](std::size_t j) {
+    Record replica;
+    DerivativeWindows w;
+    if (!remeasured_replica(r, 0x9e3779b97f4a7c15ULL * (j + 1), replica, sensor, &w)) return;
+    const std::vector<double> f = slip_force(s, initial, replica, w);
+    double sum = 0;
+    for (std::size_t k = 0; k < f.size(); ++k) sum += (f[k] - own[k]) * (f[k] - own[k]);
+    if (!std::isfinite(sum)) return;
+    sums[j] = sum;
+    made[j] = 1;
+  });
+  double total = 0;
+  std::size_t count = 0;
+  for (std::size_t j = 0; j < kSensorReplicas; ++j)
+    if (made[j]) total += sums[j], ++count;
+  return count > 0 ? total / static_cast<double>(count) : 0.0;
+}
+
+std::vector<double> stepped_finely(const State& s, std::span<const double> initial,
+                                   const Record& r) {
+  return refined_force(s, initial, r, 4);
+}
+
+double stepping_floor_rss(const State& s, const std::vector<double>& rho, const Record& r) {
+  if (r.size() < 8 || s.base.size() == 0) return 0.0;
+  const std::vector<double> initial = deflections_from_relative(s.base, rho, s.ext);
+  const std::vector<double> coarse = run_extended_slip(s.base, s.ext, initial, r).force;
+  const std::vector<double> fine = refined_force(s, initial, r, 4);
+  double sum = 0;
+  for (std::size_t k = 0; k < r.size(); ++k) sum += (fine[k] - coarse[k]) * (fine[k] - coarse[k]);
+  return std::isfinite(sum) ? sum : 0.0;
+}
 
 Baseline fit_baseline(const Record& est, const Record& val, const DiagnoseOptions& o) {
   const auto started = std::chrono::steady_clock::now();

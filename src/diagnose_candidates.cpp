@@ -217,56 +217,16 @@ double lowest_sliding_speed(const Context& c, const ExtendedSlipFit& f) {
 }
 
 // The time shift that stepping the model once per sample imitates (diagnose.hpp, Nested
-// candidates): the model of `s` run on the record refined to four steps per sample (the
-// displacement by interpolate_displacement, the normal force linearly) against
-// the same model run per sample; D is the least-squares shift with F_fine(t) ~ F_sample(t + D).
+// candidates): the model of `s` run on the record refined to four steps per sample
+// (stepped_finely) against the same model run per sample; D is the least-squares shift with
+// F_fine(t) ~ F_sample(t + D).
 double stepping_shift(const Context& c, const State& s) {
   const Record& r = c.est;
-  const std::size_t n = r.size(), steps = 4;
+  const std::size_t n = r.size();
   if (n < 8) return 0.0;
-  // The grid four times finer, without a Record (no force, no conditioning): at 10^6 samples the
-  // fine record and the whole runs on it (force, regime, velocity, acceleration) were a quarter
-  // of the diagnosis's memory, and only the force at the record's own samples is read.
-  const std::size_t fine_n = steps * (n - 1) + 1;
-  std::vector<double> fine_time, fine_x, fine_normal;
-  fine_time.reserve(fine_n);
-  fine_x.reserve(fine_n);
-  if (!r.normal.empty()) fine_normal.reserve(fine_n);
-  for (std::size_t k = 0; k + 1 < n; ++k)
-    for (std::size_t j = 0; j < steps; ++j) {
-      const double w = static_cast<double>(j) / static_cast<double>(steps);
-      const double t = r.time[k] + w * (r.time[k + 1] - r.time[k]);
-      fine_time.push_back(t);
-      fine_x.push_back(interpolate_displacement(std::span<const double>(r.time),
-                                                std::span<const double>(r.displacement), k, t));
-      if (!r.normal.empty()) fine_normal.push_back((1 - w) * r.normal[k] + w * r.normal[k + 1]);
-    }
-  fine_time.push_back(r.time.back());
-  fine_x.push_back(r.displacement.back());
-  if (!r.normal.empty()) fine_normal.push_back(r.normal.back());
   const std::vector<double> initial = deflections_from_relative(s.base, s.rho, s.ext);
-  // The model's force every `stride` samples of a grid (run_extended_slip's model and stepping).
-  const auto force_every = [&](const std::vector<double>& time, const std::vector<double>& x,
-                               const std::vector<double>& normal,
-                               const std::vector<double>& measured, std::size_t stride) {
-    Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(s.base), s.ext, 2);
-    set_extended_slip_state(model, std::span<const double>(initial));
-    std::vector<double> out((time.size() - 1) / stride + 1);
-    for_each_extended_step(
-        model, std::span<const double>(time), std::span<const double>(x),
-        std::span<const double>(normal), nullptr,
-        [&](std::size_t k, const ExtendedMotion<double>&, double force) {
-          if (k % stride == 0) out[k / stride] = force;
-        },
-        std::span<const double>(measured));
-    return out;
-  };
-  const std::vector<double> coarse =
-      force_every(r.time, r.displacement, r.normal, r.measured_displacement, 1);
-  const std::vector<double> refined = [&] {
-    const detail::UncachedSteps uncached;  // the filter of the fine grid is not asked for again
-    return force_every(fine_time, fine_x, fine_normal, {}, steps);
-  }();
+  const std::vector<double> coarse = run_extended_slip(s.base, s.ext, initial, r).force;
+  const std::vector<double> refined = stepped_finely(s, initial, r);
   double num = 0, den = 0;
   for (std::size_t k = 1; k + 1 < n; ++k) {
     const double slope = (coarse[k + 1] - coarse[k - 1]) / (r.time[k + 1] - r.time[k - 1]);
@@ -432,15 +392,19 @@ Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double
       reference > 0.0 && v.required == reference && v.drop > std::max(noise, share);
   v.validation_before = val0;
   v.validation_after = val1;
+  // The required fall is a share of what lies above the force noise's floor; whether anything is
+  // left to explain at all is judged against the floor with the displacement's sampling in it
+  // too (c.validation_measurement_percent, an estimate good to its order of magnitude: it
+  // decides that nothing is left, it does not scale the gain asked for).
+  const double floor = c.validation_floor_percent + c.validation_measurement_percent;
   v.validation_required =
       val0 - o.min_excess_share * std::max(val0 - c.validation_floor_percent, 0.0);
-  v.validation = std::isnan(val1)                     ? Verdict::Validation::not_evaluated
-                 : val0 <= c.validation_floor_percent ? Verdict::Validation::at_floor
-                 : val1 < v.validation_required       ? Verdict::Validation::falls
-                                                      : Verdict::Validation::does_not_fall;
+  v.validation = std::isnan(val1)                 ? Verdict::Validation::not_evaluated
+                 : val0 <= floor                  ? Verdict::Validation::at_floor
+                 : val1 < v.validation_required   ? Verdict::Validation::falls
+                                                  : Verdict::Validation::does_not_fall;
   // At the floor the required fall is the floor itself (reported as such).
-  if (v.validation == Verdict::Validation::at_floor)
-    v.validation_required = c.validation_floor_percent;
+  if (v.validation == Verdict::Validation::at_floor) v.validation_required = floor;
   return v;
 }
 

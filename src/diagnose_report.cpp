@@ -257,7 +257,8 @@ std::string Verdict::to_text() const {
         << format_number(validation_required, 3) << " %); ";
       break;
     case Validation::at_floor:
-      s << "the validation error is already at the noise floor ("
+      s << "the validation error is already at the floor of the force noise and the "
+        << "displacement's sampling ("
         << format_number(validation_before, 3) << " %, floor "
         << format_number(validation_required, 3) << " %): nothing above it to explain; ";
       break;
@@ -401,6 +402,9 @@ Json Diagnosis::to_json() const {
        {{"rss_sss_percent", baseline_validation_percent}, {"initial_state", "estimated"}}},
       {"estimation", {{"rss_sss_percent", baseline_estimation_percent}}},
       {"one_more_operator_rss_drop", operator_drop},
+      {"measurement_floor",
+       {{"estimation_rss_sss_percent", estimation_measurement_floor_percent},
+        {"validation_rss_sss_percent", validation_measurement_floor_percent}}},
       {"residual", baseline_evidence.to_json()}};
   Json fs = Json::array();
   for (const auto& f : findings) fs.push_back(f.to_json());
@@ -432,7 +436,9 @@ std::string Diagnosis::to_table() const {
   s << "Baseline " << (baseline_model ? baseline_model->type() : std::string("?"))
     << ": validation RSS/SSS " << format_number(baseline_validation_percent, 4) << " % (estimation "
     << format_number(baseline_estimation_percent, 4) << " %, noise floor "
-    << format_number(baseline_evidence.noise_floor_percent, 3) << " %)\n";
+    << format_number(baseline_evidence.noise_floor_percent, 3)
+    << " %, the displacement's sampling "
+    << format_number(validation_measurement_floor_percent, 3) << " % more)\n";
   if (findings.empty())
     s << "No finding: no candidate extension earned its place (the baseline explains the data "
          "as far as this record can tell).\n";

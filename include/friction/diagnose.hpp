@@ -70,9 +70,25 @@
 //          Maxwell Slip operators, so the baseline stops 2-4 times above the noise floor) a
 //          Stribeck curve bought 10-30 % of the estimation misfit and 4-8 % of the validation's
 //          (3 of 22 records named an effect they do not hold).  A model that already validates
-//          at or below that floor has nothing above it to explain, and no candidate earns its
-//          place: with the plain share (zero there) an inertia entered beside a delay and a
-//          position term that were at the floor, for a 1 % fall of an error already below it.
+//          at or below the record's floor has nothing above it to explain, and no candidate
+//          earns its place: with the plain share (zero there) an inertia entered beside a delay
+//          and a position term that were at the floor, for a 1 % fall of an error already below
+//          it.  That floor is the force noise's plus what the displacement's sampling puts into
+//          the baseline's force, which no model driven by the measured displacement removes:
+//          its sensor's error (the baseline run on replicas of the record remeasured by its own
+//          sensor, remeasured_replica, against the baseline on the record; the mean sum of
+//          squared changes over eight replicas) and its stepping once per sample (the baseline
+//          on the displacement refined to four cubic-interpolated steps per sample against the
+//          baseline per sample).  Without it, at the discovery study's seed of 17bdcec
+//          (1710750793468752286), 3 of 22 records without any effect named one (an asymmetry, a
+//          position term, validating 0.5-11 % better), on records whose encoder step q moved the
+//          stiffness sum's force K q by 2 to 24 times the force noise, and whose baselines
+//          validated below the error of the true system stepped per sample on the recorded
+//          displacement; with it, one.  The share asked for stays a share of what lies above the
+//          noise floor alone: the measurement floor is an estimate good to its order of
+//          magnitude, which may say that nothing is left but not how much of it to ask for (as
+//          a share of what lies above the larger floor, two other no-effect records of that
+//          seed named a position term and an asymmetry).
 //    Greedy: each round fits every remaining candidate on top of the accepted ones and accepts,
 //    among those that earn their place, the one with the largest gain (the lowest validation
 //    error); rounds repeat until none does.  Ranking by estimation Delta BIC instead was tried: on
@@ -191,6 +207,9 @@ struct DiagnoseOptions {
   /// Rule (b): a candidate must also drop the estimation RSS more than one more Maxwell Slip
   /// operator does (section 4 of the header).
   bool operator_reference = true;
+  /// Rule (c): the validation record's floor includes what the displacement's sampling puts into
+  /// the baseline's force (section 4); false: the force noise's floor alone.
+  bool measurement_floor = true;
   /// Ambiguous when the partner also earns its place and the two fits' 2 ln(likelihood ratio),
   /// N |ln(RSS_partner / RSS_accepted)|, is below this (10 is "very strong" evidence on the
   /// Kass & Raftery 1995 scale; section 5 of the header).
@@ -370,6 +389,10 @@ struct Diagnosis {
   double baseline_seconds = 0;  ///< of the baseline identification
   /// What one more operator drops the baseline's estimation RSS by [N^2] (rule b).
   double operator_drop = 0;
+  /// What the displacement's sampling (its sensor's error and the stepping once per sample) puts
+  /// into the baseline's force, RSS/SSS % of each record (rule c, the floor).
+  double estimation_measurement_floor_percent = 0;
+  double validation_measurement_floor_percent = 0;
 
   /// The diagnose document's body (baseline, findings, final, candidates); the caller adds
   /// schema_version and warnings.
