@@ -7,7 +7,6 @@
 
 #include "diagnose_stages.hpp"
 #include "friction/metrics.hpp"
-#include "parallel_for.hpp"
 #include "position_origin.hpp"
 
 namespace friction {
@@ -76,21 +75,20 @@ Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
   dx.warnings = b.warnings;
   dx.operator_drop = b.operator_drop;
   // The floors of rule (c) (diagnose.hpp, section 4): besides the force noise's, what the
-  // displacement's sampling does to the baseline's force on each record, its sensor's error and
-  // its stepping once per sample (the initial state on the validation record estimated there,
-  // as the validation error's is).
+  // displacement's sampling does to the baseline's force on each record (the initial state on
+  // the validation record estimated there, as the validation error's is).
+  const DerivativeWindows windows_est = record_derivative_windows(est);
   const std::vector<double> rho_v =
       estimate_relative_deflections(b.state.base, b.state.ext, val, nullptr);
-  double floors[4] = {};
-  detail::parallel_for(o.measurement_floor ? 4 : 0, o.threads, [&](std::size_t i) {
-    const Record& r = i % 2 == 0 ? est : val;
-    const std::vector<double>& rho = i % 2 == 0 ? b.state.rho : rho_v;
-    floors[i] = i < 2 ? sensor_floor_rss(b.state, rho, r, 1) : stepping_floor_rss(b.state, rho, r);
-  });
-  dx.estimation_measurement_floor_percent =
-      100.0 * (floors[0] + floors[2]) / sum_of_squares(est.force);
-  dx.validation_measurement_floor_percent =
-      100.0 * (floors[1] + floors[3]) / sum_of_squares(val.force);
+  if (o.measurement_floor) {
+    dx.estimation_measurement_floor_percent =
+        100.0 * measurement_floor_rss(b.state, b.state.rho, est, windows_est, o.threads) /
+        sum_of_squares(est.force);
+    dx.validation_measurement_floor_percent =
+        100.0 *
+        measurement_floor_rss(b.state, rho_v, val, record_derivative_windows(val), o.threads) /
+        sum_of_squares(val.force);
+  }
   const Context c{
       est,
       val,
@@ -98,11 +96,10 @@ Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
       n,
       sigma,
       floor_rss,
-      floors[0] + floors[2],
       b.state.ext.reference_force,
       b.operator_drop,
       std::max(b.state.rss - floor_rss, 0.0),
-      record_derivative_windows(est),
+      windows_est,
       profile_scales(
           est,
           run_extended_slip(b.state.base, b.state.ext,

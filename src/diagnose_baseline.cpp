@@ -43,7 +43,8 @@ double one_more_operator(const Record& est, const IdentifiedModel& nlr, std::siz
 }
 
 // The model of `s` from `initial` on a record with its derivative windows `w`: the force at every
-// sample, without the thread's filter cache (a replica's filter is not asked for again).
+// sample, without the thread's filter cache (a replica's filter is not asked for again, and the
+// validation record's would displace the estimation record's, which the fits that follow read).
 std::vector<double> slip_force(const State& s, std::span<const double> initial, const Record& r,
                                const DerivativeWindows& w) {
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(s.base), s.ext, 2);
@@ -58,14 +59,21 @@ std::vector<double> slip_force(const State& s, std::span<const double> initial, 
   return out;
 }
 
-// The model of `s` from `initial` run on `r` refined to `steps` steps per sample (the displacement
-// by interpolate_displacement, the normal force linearly), its force at the record's samples.
-// The grid is made without a Record (no force, no conditioning): at 10^6 samples the fine record
-// and the whole runs on it (force, regime, velocity, acceleration) were a quarter of the
-// diagnosis's memory, and only the force at the record's own samples is read.
-std::vector<double> refined_force(const State& s, std::span<const double> initial, const Record& r,
-                                  std::size_t steps) {
-  const std::size_t n = r.size();
+// Replicas of the sensor floor.  Its relative sampling error is about sqrt(2 / 8) = 0.5 for a
+// floor made by a few stiff operators at a few reversals, less where many samples contribute: a
+// floor, unlike a standard error, only needs its order of magnitude.  The seeds are those of the
+// covariance's replicas (extension_families.hpp), whose windows the rule then need not choose
+// again for the estimation record.
+constexpr std::size_t kSensorReplicas = 8;
+
+}  // namespace
+
+std::vector<double> stepped_finely(const State& s, std::span<const double> initial,
+                                   const Record& r) {
+  // The grid is made without a Record (no force, no conditioning): at 10^6 samples the fine
+  // record and the whole runs on it (force, regime, velocity, acceleration) were a quarter of the
+  // diagnosis's memory, and only the force at the record's own samples is read.
+  const std::size_t n = r.size(), steps = 4;
   const std::size_t fine_n = steps * (n - 1) + 1;
   std::vector<double> fine_time, fine_x, fine_normal;
   fine_time.reserve(fine_n);
@@ -97,30 +105,25 @@ std::vector<double> refined_force(const State& s, std::span<const double> initia
   return out;
 }
 
-// Replicas of the sensor floor.  Its relative sampling error is about sqrt(2 / 8) = 0.5 for a
-// floor made by a few stiff operators at a few reversals, less where many samples contribute: a
-// floor, unlike a standard error, only needs its order of magnitude.  The seeds are those of the
-// covariance's replicas (extension_families.hpp), whose windows the rule then need not choose
-// again for the estimation record.
-constexpr std::size_t kSensorReplicas = 8;
-
-}  // namespace
-
-double sensor_floor_rss(const State& s, const std::vector<double>& rho, const Record& r,
-                        unsigned threads) {
-  if (r.size() < 2 || s.base.size() == 0) return 0.0;
-  const Resolution sensor = estimate_displacement_resolution(r.measured());
+double measurement_floor_rss(const State& s, const std::vector<double>& rho, const Record& r,
+                             const DerivativeWindows& w, unsigned threads) {
+  if (r.size() < 8 || s.base.size() == 0) return 0.0;
   const std::vector<double> initial = deflections_from_relative(s.base, rho, s.ext);
-  const std::vector<double> own = slip_force(s, initial, r, record_derivative_windows(r));
+  const std::vector<double> own = slip_force(s, initial, r, w);
+  const auto squared_change = [&](const std::vector<double>& f) {
+    double sum = 0;
+    for (std::size_t k = 0; k < f.size(); ++k) sum += (f[k] - own[k]) * (f[k] - own[k]);
+    return sum;
+  };
+  // The sensor's part.
+  const Resolution sensor = estimate_displacement_resolution(r.measured());
   std::vector<double> sums(kSensorReplicas, 0.0);
   std::vector<char> made(kSensorReplicas, 0);
   detail::parallel_for(kSensorReplicas, threads, [&](std::size_t j) {
     Record replica;
-    DerivativeWindows w;
-    if (!remeasured_replica(r, 0x9e3779b97f4a7c15ULL * (j + 1), replica, sensor, &w)) return;
-    const std::vector<double> f = slip_force(s, initial, replica, w);
-    double sum = 0;
-    for (std::size_t k = 0; k < f.size(); ++k) sum += (f[k] - own[k]) * (f[k] - own[k]);
+    DerivativeWindows rw;
+    if (!remeasured_replica(r, 0x9e3779b97f4a7c15ULL * (j + 1), replica, sensor, &rw)) return;
+    const double sum = squared_change(slip_force(s, initial, replica, rw));
     if (!std::isfinite(sum)) return;
     sums[j] = sum;
     made[j] = 1;
@@ -129,22 +132,10 @@ double sensor_floor_rss(const State& s, const std::vector<double>& rho, const Re
   std::size_t count = 0;
   for (std::size_t j = 0; j < kSensorReplicas; ++j)
     if (made[j]) total += sums[j], ++count;
-  return count > 0 ? total / static_cast<double>(count) : 0.0;
-}
-
-std::vector<double> stepped_finely(const State& s, std::span<const double> initial,
-                                   const Record& r) {
-  return refined_force(s, initial, r, 4);
-}
-
-double stepping_floor_rss(const State& s, const std::vector<double>& rho, const Record& r) {
-  if (r.size() < 8 || s.base.size() == 0) return 0.0;
-  const std::vector<double> initial = deflections_from_relative(s.base, rho, s.ext);
-  const std::vector<double> coarse = run_extended_slip(s.base, s.ext, initial, r).force;
-  const std::vector<double> fine = refined_force(s, initial, r, 4);
-  double sum = 0;
-  for (std::size_t k = 0; k < r.size(); ++k) sum += (fine[k] - coarse[k]) * (fine[k] - coarse[k]);
-  return std::isfinite(sum) ? sum : 0.0;
+  const double sensor_part = count > 0 ? total / static_cast<double>(count) : 0.0;
+  // The stepping's part.
+  const double stepping_part = squared_change(stepped_finely(s, initial, r));
+  return sensor_part + (std::isfinite(stepping_part) ? stepping_part : 0.0);
 }
 
 Baseline fit_baseline(const Record& est, const Record& val, const DiagnoseOptions& o) {

@@ -54,16 +54,15 @@ struct Context {
   std::size_t n = 0;           ///< estimation samples
   double sigma = 0;            ///< white-noise estimate of the estimation force [N]
   double floor_rss = 0;        ///< N sigma^2 [N^2]
-  /// What the displacement's sampling puts into the baseline's force on the estimation record:
-  /// sensor_floor_rss + stepping_floor_rss [N^2].
-  double measurement_rss = 0;
   double f0ref = 0;            ///< F0 of the baseline: the level pieces' reference force [N]
   double operator_drop = 0;    ///< what one more operator drops the baseline's RSS by [N^2]
   double baseline_excess = 0;  ///< the baseline's RSS above the noise floor [N^2]
   DerivativeWindows windows;   ///< the estimation record's (sample_derivatives.hpp)
   ProfileScales scales;        ///< the estimation record's, for the profiled starts
-  double validation_floor_percent = 0;   ///< the validation record's noise floor, RSS/SSS %
-  double validation_measurement_percent = 0;  ///< the same on the validation record, RSS/SSS %
+  double validation_floor_percent = 0;        ///< the validation record's noise floor, RSS/SSS %
+  /// What the displacement's sampling puts into the baseline's force there (measurement_floor_rss),
+  /// RSS/SSS %.
+  double validation_measurement_percent = 0;
   /// The position subtracted from both records (position_origin.hpp): 0 when not shifted.
   double position_origin = 0;
 };
@@ -81,23 +80,21 @@ struct Baseline {
 /// NLR on the estimation record, its errors, and what one more operator buys (section 4, b).
 Baseline fit_baseline(const Record& est, const Record& val, const DiagnoseOptions& o);
 
-/// What the displacement sensor's error puts into the force of the model of `s` started from the
-/// relative deflections `rho`, on record `r` [N^2] (section 4, the floors): the mean over replicas
-/// of the record remeasured by its own sensor (remeasured_replica) of the sum of squared changes
-/// of the model's force.  0 when the sensor has neither a quantum nor noise.
-double sensor_floor_rss(const State& s, const std::vector<double>& rho, const Record& r,
-                        unsigned threads);
+/// What the displacement's sampling puts into the force of the model of `s` started from the
+/// relative deflections `rho` on record `r` whose derivative windows are `w` [N^2] (section 4, the
+/// floors): its sensor's error, the mean over replicas of the record remeasured by its own sensor
+/// (remeasured_replica; nothing when the sensor has neither a quantum nor noise) of the sum of
+/// squared changes of the model's force, plus its stepping once per sample, the sum of squared
+/// differences between the force stepped per sample and stepped_finely.  The replicas run on
+/// `threads` threads; the result does not depend on it.
+double measurement_floor_rss(const State& s, const std::vector<double>& rho, const Record& r,
+                             const DerivativeWindows& w, unsigned threads);
 
 /// The model of `s` from the deflections `initial` run on the record refined to four steps per
 /// sample (displacement by interpolate_displacement, normal force linearly), its force at the
 /// record's samples: the model as stepping once per sample does not see it.
 std::vector<double> stepped_finely(const State& s, std::span<const double> initial,
                                    const Record& r);
-
-/// What stepping once per sample puts into the force of the model of `s` started from the relative
-/// deflections `rho` on record `r` [N^2] (section 4, the floors): the sum of squared differences
-/// between its force stepped per sample and stepped_finely.
-double stepping_floor_rss(const State& s, const std::vector<double>& rho, const Record& r);
 
 /// A LuGre baseline: LG, its validation, and its one candidate (Maxwell Slip elements, from the
 /// NLR baseline).  Fills the baseline part of `dx` and its first round; returns the finding when
