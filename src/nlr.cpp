@@ -18,6 +18,7 @@
 #include "compressed_cost.hpp"
 #include "friction/covariance_report.hpp"
 #include "friction/initial_state.hpp"
+#include "merged_column_gram.hpp"
 #include "parallel_for.hpp"
 #include "slip_regression.hpp"
 
@@ -860,50 +861,30 @@ void dictionary_operators(Data& d, std::span<const std::vector<double>> added = 
   const Eigen::Index pi = static_cast<Eigen::Index>(p);
   const std::size_t stride = (n + 65535) / 65536;
   constexpr Eigen::Index kRows = 1024;
-  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(pi + 1, pi + 1);
   Eigen::MatrixXd block(kRows, pi + 1);
   std::vector<double> z(p_operators);
   for (std::size_t c = 0; c < p_operators; ++c) z[c] = cols[c].second * thr[cols[c].first];
   // A threshold's three columns (virgin, started at either bound) are equal to the bit once its
   // trajectories have met (the range has covered twice the threshold: all three at the same
   // bound), and from then on they stay equal, the same recursion on the same input.  So a block
-  // of rows holds only the columns not yet merged into their threshold's virgin column, and its
-  // products are spread over the merged ones: on a record whose range soon covers most of the
-  // grid that is a third of the columns and a ninth of the products (the block's Gram matrix had
-  // been the largest single cost of an NLR fit on the strokes bench record).
-  std::vector<Eigen::Index> unique_of(p + 1), virgin_of(p_operators);
+  // of rows holds only the columns not yet merged into their threshold's virgin column
+  // (merged_column_gram.hpp; the block's Gram matrix had been the largest single cost of an NLR
+  // fit on the strokes bench record).
+  std::vector<Eigen::Index> virgin_of(p_operators);
   for (std::size_t c = 0; c < p_operators; ++c)
     virgin_of[c] = cols[c].second == 0.0 ? static_cast<Eigen::Index>(c) : virgin_of[c - 1];
-  std::vector<char> merged(p_operators, 0);
-  std::vector<Eigen::Index> unique;  // the full columns that the block holds, in order
-  Eigen::MatrixXd block_gram;
+  detail::MergedColumnGram merged_gram(pi + 1);
   const auto start_block = [&] {
-    for (std::size_t c = 0; c < p_operators; ++c)
-      if (!merged[c] && cols[c].second != 0.0 &&
+    for (std::size_t c = 0; c < p_operators; ++c) {
+      const Eigen::Index ci = static_cast<Eigen::Index>(c);
+      if (!merged_gram.merged(ci) && cols[c].second != 0.0 &&
           z[c] == z[static_cast<std::size_t>(virgin_of[c])])
-        merged[c] = 1;
-    unique.clear();
-    for (std::size_t c = 0; c <= p; ++c) {
-      if (c < p_operators && merged[c]) {
-        unique_of[c] = unique_of[static_cast<std::size_t>(virgin_of[c])];
-        continue;
-      }
-      unique_of[c] = static_cast<Eigen::Index>(unique.size());
-      unique.push_back(static_cast<Eigen::Index>(c));
+        merged_gram.merge(ci, virgin_of[c]);
     }
   };
   const auto add_block = [&](Eigen::Index rows) {
-    const Eigen::Index nu = static_cast<Eigen::Index>(unique.size());
-    block_gram.setZero(nu, nu);
-    block_gram.selfadjointView<Eigen::Lower>().rankUpdate(
-        block.topLeftCorner(rows, nu).transpose());
-    for (Eigen::Index a = 0; a <= pi; ++a) {
-      const Eigen::Index ua = unique_of[static_cast<std::size_t>(a)];
-      for (Eigen::Index b = 0; b <= a; ++b) {
-        const Eigen::Index ub = unique_of[static_cast<std::size_t>(b)];
-        gram(a, b) += ua >= ub ? block_gram(ua, ub) : block_gram(ub, ua);
-      }
-    }
+    const Eigen::Index held = static_cast<Eigen::Index>(merged_gram.held().size());
+    merged_gram.add(block.topLeftCorner(rows, held));
   };
   Eigen::Index rows = 0;
   bool block_open = false;
@@ -925,8 +906,9 @@ void dictionary_operators(Data& d, std::span<const std::vector<double>> added = 
     }
     if (t % stride != 0) continue;
     if (!block_open) start_block(), block_open = true;
-    for (std::size_t u = 0; u < unique.size(); ++u) {
-      const std::size_t c = static_cast<std::size_t>(unique[u]);
+    const std::vector<Eigen::Index>& held = merged_gram.held();
+    for (std::size_t u = 0; u < held.size(); ++u) {
+      const std::size_t c = static_cast<std::size_t>(held[u]);
       const Eigen::Index ui = static_cast<Eigen::Index>(u);
       if (c < p_operators)
         block(rows, ui) = z[c];
@@ -942,6 +924,7 @@ void dictionary_operators(Data& d, std::span<const std::vector<double>> added = 
     }
   }
   if (rows > 0) add_block(rows);
+  const Eigen::MatrixXd& gram = merged_gram.gram();
   Eigen::VectorXd scale(pi);
   for (Eigen::Index c = 0; c < pi; ++c) scale(c) = gram(c, c) > 0.0 ? std::sqrt(gram(c, c)) : 1.0;
   Eigen::MatrixXd scaled = gram.topLeftCorner(pi, pi).selfadjointView<Eigen::Lower>();
