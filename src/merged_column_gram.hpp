@@ -35,7 +35,8 @@ class MergedColumnGram {
 
   Eigen::Index columns() const { return gram_.cols(); }
 
-  /// From the next block on, `column` equals `into` (a held column) on every row.
+  /// From the next block on, `column` equals `into` (a held column) on every row.  A column
+  /// already merged stays where it was merged.
   void merge(Eigen::Index column, Eigen::Index into) {
     FRICTION_CHECK(column >= 0 && column < columns() && into >= 0 && into < columns() &&
                        column != into && !merged(into),

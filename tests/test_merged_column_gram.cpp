@@ -148,6 +148,16 @@ TEST(MergedColumnGram, AMergeBeforeTheColumnsAreEqualIsSeen) {
   EXPECT_EQ(seen, trials);
 }
 
+// Adds one row holding `held_values` (the held columns') to a Gram matrix with nothing added yet:
+// its lower triangle must then be that of the whole row's outer product, exactly.
+void expect_gram_of_one_row(MergedColumnGram& gram, const Eigen::VectorXd& held_values,
+                            const Eigen::VectorXd& whole_row) {
+  gram.add(held_values.transpose());
+  const Eigen::MatrixXd expected = whole_row * whole_row.transpose();
+  for (Eigen::Index i = 0; i < whole_row.size(); ++i)
+    for (Eigen::Index j = 0; j <= i; ++j) EXPECT_EQ(gram.gram()(i, j), expected(i, j));
+}
+
 TEST(MergedColumnGram, HeldColumnsAndTheirOrder) {
   MergedColumnGram gram(5);
   EXPECT_EQ(gram.held(), (std::vector<Eigen::Index>{0, 1, 2, 3, 4}));
@@ -160,25 +170,16 @@ TEST(MergedColumnGram, HeldColumnsAndTheirOrder) {
   EXPECT_THROW(gram.merge(4, 3), friction::InvalidParameter);
   EXPECT_THROW(gram.merge(2, 2), friction::InvalidParameter);
   EXPECT_THROW(gram.add(Eigen::MatrixXd::Ones(4, 5)), friction::InvalidParameter);
-  // Rows (1, 2, 3, 4, 5) after those merges: every column equal to the one it follows.
-  Eigen::MatrixXd block(1, 3);
-  block << 1.0, 3.0, 5.0;
-  gram.add(block);
-  const Eigen::VectorXd row = (Eigen::VectorXd(5) << 1.0, 1.0, 3.0, 1.0, 5.0).finished();
-  const Eigen::MatrixXd expected = row * row.transpose();
-  for (Eigen::Index i = 0; i < 5; ++i)
-    for (Eigen::Index j = 0; j <= i; ++j) EXPECT_EQ(gram.gram()(i, j), expected(i, j));
+  // One row after those merges: every merged column equal to the one it follows.
+  expect_gram_of_one_row(gram, (Eigen::VectorXd(3) << 1.0, 3.0, 5.0).finished(),
+                         (Eigen::VectorXd(5) << 1.0, 1.0, 3.0, 1.0, 5.0).finished());
   // A chain through a column of higher index: 1 into 3, then 3 into 0.
   MergedColumnGram chain(5);
   chain.merge(1, 3);
   chain.merge(3, 0);
   EXPECT_EQ(chain.held(), (std::vector<Eigen::Index>{0, 2, 4}));
-  block << 7.0, 8.0, 9.0;
-  chain.add(block);
-  const Eigen::VectorXd chained = (Eigen::VectorXd(5) << 7.0, 7.0, 8.0, 7.0, 9.0).finished();
-  const Eigen::MatrixXd expected_chain = chained * chained.transpose();
-  for (Eigen::Index i = 0; i < 5; ++i)
-    for (Eigen::Index j = 0; j <= i; ++j) EXPECT_EQ(chain.gram()(i, j), expected_chain(i, j));
+  expect_gram_of_one_row(chain, (Eigen::VectorXd(3) << 7.0, 8.0, 9.0).finished(),
+                         (Eigen::VectorXd(5) << 7.0, 7.0, 8.0, 7.0, 9.0).finished());
 }
 
 }  // namespace
