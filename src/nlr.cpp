@@ -14,6 +14,7 @@
 #include <memory>
 #include <sstream>
 
+#include "bounded_levenberg_marquardt.hpp"
 #include "bounded_solver.hpp"
 #include "compressed_cost.hpp"
 #include "friction/covariance_report.hpp"
@@ -146,7 +147,7 @@ void full_jacobian(const Data& d, std::span<const double> s, std::span<const dou
 }
 
 // The compressed Jacobian: F ((2M+1) x (2M+1)) with F^T F = [J r]^T [J r], J the Jacobian of
-// full_jacobian, which stands for J and r in the solver's problem (VpCost; compressed_cost.hpp
+// full_jacobian, which stands for J and r in the solver's problem (VpProblem; compressed_cost.hpp
 // says why Levenberg-Marquardt takes the same steps on it).
 //
 // J is built in row blocks and never stored whole.  With Phi_f the trajectories of the free
@@ -314,42 +315,31 @@ double percent_of(const Eigen::VectorXd& r) {
   return 100.0 * r.squaredNorm() / static_cast<double>(r.size());
 }
 
-// The variable-projection problem as Ceres sees it: 2M + 1 residuals, the compressed Jacobian of
-// compressed_jacobian (the same Levenberg-Marquardt steps as on the N projected residuals).  A
-// value-only evaluation (the line search's trial points, the candidate's cost) returns the
-// residual's norm in the last entry: the cost is the same, 0.5 ||r||^2.
-class VpCost final : public ceres::CostFunction {
+// The variable-projection problem as bounded_levenberg_marquardt sees it: x = (s, rho), 2M + 1
+// rows, the compressed Jacobian of compressed_jacobian (the same Levenberg-Marquardt steps as on
+// the N projected residuals).  Its trial points cost one evaluation each, with the trajectories'
+// sensitivities computed eagerly: most trials are accepted, and the Jacobian there then only
+// assembles what is missing.
+class VpProblem {
  public:
-  VpCost(const Data& d, int m) : d_(d), m_(m) {
-    ws_.eager = true;
-    set_num_residuals(2 * m + 1);
-    mutable_parameter_block_sizes()->push_back(m);
-    mutable_parameter_block_sizes()->push_back(m);
+  VpProblem(const Data& d, std::size_t m) : d_(d), m_(m) { ws_.eager = true; }
+  bool cost(std::span<const double> x, double& c) {
+    const auto& v = vp_evaluate(d_, x.first(m_), x.subspan(m_, m_), Jacobian::none, ws_);
+    c = 0.5 * v.r.squaredNorm();
+    return std::isfinite(c);
   }
-  bool Evaluate(double const* const* p, double* residuals, double** jacobians) const override {
-    const std::size_t m = static_cast<std::size_t>(m_);
-    const int rows = 2 * m_ + 1;
-    const auto& v = vp_evaluate(d_, {p[0], m}, {p[1], m},
-                                jacobians ? Jacobian::compressed : Jacobian::none, ws_);
-    Eigen::Map<Eigen::VectorXd> res(residuals, rows);
-    if (!jacobians) {
-      res.setZero();
-      res(rows - 1) = v.r.norm();
-      return std::isfinite(res(rows - 1));
-    }
-    res = ws_.factor.col(2 * m_);
-    for (int b = 0; b < 2; ++b)
-      if (jacobians[b]) {
-        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
-            jacobians[b], rows, m_) = ws_.factor.middleCols(b * m_, m_);
-      }
-    return ws_.factor.allFinite();
+  bool linearise(std::span<const double> x, Eigen::MatrixXd& rows, Eigen::VectorXd& e) {
+    vp_evaluate(d_, x.first(m_), x.subspan(m_, m_), Jacobian::compressed, ws_);
+    const Eigen::Index p = static_cast<Eigen::Index>(2 * m_);
+    rows = ws_.factor.leftCols(p);
+    e = ws_.factor.col(p);
+    return rows.allFinite() && e.allFinite();
   }
 
  private:
   const Data& d_;
-  int m_;
-  mutable Workspace ws_;
+  std::size_t m_;
+  Workspace ws_;
 };
 
 class JointCost final : public ceres::CostFunction {
@@ -421,6 +411,8 @@ struct Fit {
   std::string message;
 };
 
+// Ceres' options for the joint solver (NlrSolver::Joint); the variable-projection search
+// (bounded_levenberg_marquardt) takes its iteration budget and tolerances from them.
 ceres::Solver::Options solver_options(const NlrOptions& o, std::size_t samples) {
   ceres::Solver::Options so;
   // QR, robust to the zero columns of inactive operators.  DENSE_NORMAL_CHOLESKY was 20-35 %
@@ -490,20 +482,24 @@ class HopelessSearch final : public ceres::IterationCallback {
   HopelessSearch(double target, double noise_cost, int max_iterations)
       : target_(target), noise_cost_(noise_cost), max_iterations_(max_iterations) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-    const double best = best_.empty() ? it.cost : std::min(best_.back(), it.cost);
+    return keep_going(it.cost) ? ceres::SOLVER_CONTINUE : ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+  }
+  // `cost`: the search's cost [0.5 RSS] after its next iteration (or at its start).
+  bool keep_going(double cost) {
+    const double best = best_.empty() ? cost : std::min(best_.back(), cost);
     best_.push_back(best);
     const std::size_t k = best_.size() - 1;
-    if (k < kWindow) return ceres::SOLVER_CONTINUE;
+    if (k < kWindow) return true;
     const double pace = (best_[k - kWindow] - best) / static_cast<double>(kWindow);
     if (noise_cost_ > 0.0 && pace * static_cast<double>(max_iterations_) < noise_cost_) {
       converged_ = true;
-      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+      return false;
     }
-    if (!std::isfinite(target_) || best <= target_) return ceres::SOLVER_CONTINUE;
+    if (!std::isfinite(target_) || best <= target_) return true;
     const double left = static_cast<double>(std::max(0, max_iterations_ - static_cast<int>(k)));
-    if (best - target_ <= left * pace) return ceres::SOLVER_CONTINUE;
+    if (best - target_ <= left * pace) return true;
     stopped_ = true;
-    return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    return false;
   }
   bool stopped() const { return stopped_; }
   bool converged() const { return converged_; }
@@ -522,39 +518,65 @@ Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, 
   const int m = static_cast<int>(s.size());
   for (double& v : s) v = std::clamp(v, 0.0, 1.0);
   Fit fit;
-  // Owned here so that its cost's workspace (the trajectories with their sensitivities) is freed
-  // before the final evaluation: at N = 10^6 that is 24 M bytes per operator.
-  auto problem = std::make_unique<ceres::Problem>();
-  std::vector<double> logk;
-  if (o.solver == NlrSolver::VariableProjection) {
-    problem->AddResidualBlock(new VpCost(d, m), nullptr, s.data(), rho.data());
-  } else {
-    Workspace ws;
-    const auto& v = vp_evaluate(d, s, rho, Jacobian::none, ws);
-    const double kmax = std::max(v.k.maxCoeff(), 1e-300);
-    for (int i = 0; i < m; ++i) logk.push_back(std::log(std::max(v.k(i), 1e-6 * kmax)));
-    problem->AddResidualBlock(new JointCost(d, m, JointCost::StickBreaking), nullptr, logk.data(),
-                              s.data(), rho.data());
-  }
-  for (int i = 0; i < m; ++i) {
-    problem->SetParameterLowerBound(s.data(), i, 0.0);
-    problem->SetParameterUpperBound(s.data(), i, 1.0);
-    problem->SetParameterLowerBound(rho.data(), i, -1.0);
-    problem->SetParameterUpperBound(rho.data(), i, 1.0);
-  }
-  ceres::Solver::Summary summary;
-  ceres::Solver::Options so = solver_options(o, d.x.size());
   const double n = static_cast<double>(d.y.size());
   HopelessSearch hopeless(target * (1.0 + o.stall_tolerance) * n / 200.0, 0.5 * d.sigma2,
                           o.max_iterations);
-  so.callbacks.push_back(&hopeless);
-  ceres::Solve(so, problem.get(), &summary);
-  problem.reset();
-  fit.seconds = summary.total_time_in_seconds;
-  fit.start_percent = 100.0 * 2.0 * summary.initial_cost / n;
-  fit.converged = summary.termination_type == ceres::CONVERGENCE;
-  fit.iterations = static_cast<int>(summary.iterations.size());
-  fit.message = summary.message;
+  ceres::Solver::Options so = solver_options(o, d.x.size());
+  std::vector<double> logk;
+  ceres::Solver::Summary summary;
+  if (o.solver == NlrSolver::VariableProjection) {
+    const auto started = std::chrono::steady_clock::now();
+    const std::size_t mm = static_cast<std::size_t>(m);
+    std::vector<double> x(s), lower(2 * mm, 0.0), upper(2 * mm, 1.0);
+    x.insert(x.end(), rho.begin(), rho.end());
+    std::fill(lower.begin() + m, lower.end(), -1.0);
+    detail::BoundedLmOptions lm;
+    lm.max_iterations = o.max_iterations;
+    lm.function_tolerance = so.function_tolerance;
+    lm.gradient_tolerance = so.gradient_tolerance;
+    lm.parameter_tolerance = so.parameter_tolerance;
+    detail::BoundedLmSummary result;
+    {
+      // Scoped so that its workspace (the trajectories with their sensitivities) is freed before
+      // the final evaluation: at N = 10^6 that is 24 M bytes per operator.
+      VpProblem problem(d, mm);
+      result = detail::bounded_levenberg_marquardt(
+          problem, std::span<double>(x), lower, upper, lm,
+          [&hopeless](int, double cost) { return hopeless.keep_going(cost); });
+    }
+    fit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    fit.start_percent = 100.0 * 2.0 * result.initial_cost / n;
+    fit.converged = result.termination == detail::BoundedLmTermination::converged;
+    fit.iterations = result.iterations + 1;  // counted as Ceres does, the start included
+    fit.message = result.message;
+    s.assign(x.begin(), x.begin() + m);
+    rho.assign(x.begin() + m, x.end());
+  } else {
+    // Owned here so that its cost's workspace is freed before the final evaluation.
+    auto problem = std::make_unique<ceres::Problem>();
+    {
+      Workspace ws;
+      const auto& v = vp_evaluate(d, s, rho, Jacobian::none, ws);
+      const double kmax = std::max(v.k.maxCoeff(), 1e-300);
+      for (int i = 0; i < m; ++i) logk.push_back(std::log(std::max(v.k(i), 1e-6 * kmax)));
+    }
+    problem->AddResidualBlock(new JointCost(d, m, JointCost::StickBreaking), nullptr, logk.data(),
+                              s.data(), rho.data());
+    for (int i = 0; i < m; ++i) {
+      problem->SetParameterLowerBound(s.data(), i, 0.0);
+      problem->SetParameterUpperBound(s.data(), i, 1.0);
+      problem->SetParameterLowerBound(rho.data(), i, -1.0);
+      problem->SetParameterUpperBound(rho.data(), i, 1.0);
+    }
+    so.callbacks.push_back(&hopeless);
+    ceres::Solve(so, problem.get(), &summary);
+    problem.reset();
+    fit.seconds = summary.total_time_in_seconds;
+    fit.start_percent = 100.0 * 2.0 * summary.initial_cost / n;
+    fit.converged = summary.termination_type == ceres::CONVERGENCE;
+    fit.iterations = static_cast<int>(summary.iterations.size());
+    fit.message = summary.message;
+  }
   if (hopeless.converged()) {
     fit.converged = true;
     fit.message =

@@ -194,10 +194,10 @@ TEST(DnlrxIdentification, ReusingNlrsOrderSelectionGivesTheSameModel) {
     return identify_dnlrx(est.time, est.displacement, est.force, o);
   };
   {
-    SCOPED_TRACE("order selection: NLR up to M = 5, DNLRX up to M = 4");
+    SCOPED_TRACE("order selection: NLR up to M = 5, DNLRX up to M = 3");
     const NlrResult n = nlr(5, 0);
-    const DnlrxResult own = dnlrx(4, 0, nullptr);
-    const DnlrxResult shared = dnlrx(4, 0, &n.report);
+    const DnlrxResult own = dnlrx(3, 0, nullptr);
+    const DnlrxResult shared = dnlrx(3, 0, &n.report);
     EXPECT_LT(shared.report.starts.size(), n.report.starts.size());
     expect_same_dnlrx(shared, own);
     // NLR's thorough refinement of its selected M logs an "initial-state" start, better than the
@@ -211,9 +211,9 @@ TEST(DnlrxIdentification, ReusingNlrsOrderSelectionGivesTheSameModel) {
     s.final_percent = 0.0;
     s.final_thresholds = {1e-6, 2e-6};
     refined.starts.push_back(s);
-    expect_same_dnlrx(dnlrx(4, 0, &refined), own);
+    expect_same_dnlrx(dnlrx(3, 0, &refined), own);
     // The operator counts run on concurrent threads: one thread gives the same model.
-    expect_same_dnlrx(dnlrx(4, 0, &n.report, 1), own);
+    expect_same_dnlrx(dnlrx(3, 0, &n.report, 1), own);
   }
   {
     SCOPED_TRACE("fixed M = 3");
