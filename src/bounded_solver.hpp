@@ -1,4 +1,6 @@
-// Solver options of the bounded least-squares fits (NLR, DNLRX, LG, the extended fits).
+// Solver options of the bounded least-squares fits that run in Ceres (DNLRX, LG, the extended
+// fits, NLR's joint solver; NLR's variable-projection search has its own bounded step,
+// bounded_levenberg_marquardt.hpp).
 //
 // With bounds on a parameter block, Ceres' trust-region minimiser follows every step with a
 // projected Armijo line search along it (TrustRegionMinimizer, "is_constrained").  Its default
