@@ -547,7 +547,9 @@ Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, 
     fit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     fit.start_percent = 100.0 * 2.0 * result.initial_cost / n;
     fit.converged = result.termination == detail::BoundedLmTermination::converged;
-    fit.iterations = result.iterations + 1;  // counted as Ceres does, the start included
+    // The start and every trial step (Ceres' count left out a last trial that ended the search
+    // on a tolerance).
+    fit.iterations = result.iterations + 1;
     fit.message = result.message;
     s.assign(x.begin(), x.begin() + m);
     rho.assign(x.begin() + m, x.end());

@@ -36,7 +36,7 @@
 //    solved on the parameters not held at a bound by the gradient, clamped into the box, accepted
 //    by the decrease its own linear model predicts, one evaluation per trial; Ceres' projected
 //    line search wasted a third of the evaluations on steps pushing a parameter at its bound
-//    outward, and this search reaches the same minima with 1.1-2.5x less time on the bench
+//    outward, and this search reaches the same minima in 1.2-2.5x less time on the bench
 //    records, README "NLR's own bounded Levenberg-Marquardt").  A search that cannot reach the
 //    best minimum already known at this M, nor the (M-1)-operator minimum (which an M-operator
 //    model contains), within its remaining iterations at the pace of its last 10 is stopped
