@@ -2,7 +2,8 @@
 // its measurement changed, to tell which part of a record biases an estimate (run by hand).
 //
 //   resimulate_record SEED ID DIR [--no-encoder] [--no-noise] [--rate-factor K]
-//                     [--exact-derivatives] [--independent-design]
+//                     [--exact-derivatives] [--independent-design] [--noise-seed S]
+//                     [--encoder-phase P]
 //
 // writes DIR/estimation.csv, DIR/validation.csv, DIR/read-options.txt (the CLI options the files
 // need) and DIR/truth.json, like the study's own record directory; the same system, motions and
@@ -10,6 +11,11 @@
 // 1e-6 Fc, white (not zero: a fit's standard errors stay defined); --rate-factor K: K times the
 // sampling rate over the same durations; --exact-derivatives: DIR/exact-estimation.csv and
 // DIR/exact-validation.csv, the exact v(t_k) and a(t_k) [m/s, m/s^2] of each record;
+// --noise-seed S: another realisation of the force noise (and of an analog sensor's), the same
+// system and motions, for a Monte-Carlo look at an estimate's spread against its standard error;
+// --encoder-phase P: P quanta (0 <= P < 1) added to the encoder's offset, the same motion read by
+// an encoder mounted a fraction of a line further on (what the quantisation alone does to an
+// estimate);
 // --independent-design: the validation motion of a study run before 2026-11-29 (study_design.hpp,
 // ValidationDesign).  It prints the
 // true elements (k_i and Delta_i = alpha_i Fc / k_i, for a model file of the true system) and the
@@ -22,6 +28,7 @@
 #include <exception>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 
 #include "study_design.hpp"
@@ -30,7 +37,8 @@ int main(int argc, char** argv) {
   using namespace truth;
   if (argc < 4) {
     std::fprintf(stderr, "usage: %s SEED ID DIR [--no-encoder] [--no-noise] [--rate-factor K] "
-                 "[--exact-derivatives] [--independent-design]\n",
+                 "[--exact-derivatives] [--independent-design] [--noise-seed S] "
+                 "[--encoder-phase P]\n",
                  argv[0]);
     return 2;
   }
@@ -40,6 +48,8 @@ int main(int argc, char** argv) {
     const std::filesystem::path dir = argv[3];
     bool encoder = true, noise = true, exact_derivatives = false;
     double rate_factor = 1;
+    std::optional<std::uint64_t> noise_seed;
+    double encoder_phase = 0;
     ValidationDesign validation = ValidationDesign::another_realisation;
     for (int i = 4; i < argc; ++i) {
       const std::string a = argv[i];
@@ -51,6 +61,12 @@ int main(int argc, char** argv) {
         validation = ValidationDesign::independent_design;
       } else if (a == "--no-noise") {
         noise = false;
+      } else if (a == "--encoder-phase" && i + 1 < argc) {
+        encoder_phase = std::strtod(argv[++i], nullptr);
+        if (!(encoder_phase >= 0 && encoder_phase < 1))
+          throw std::invalid_argument("--encoder-phase must be in [0, 1)");
+      } else if (a == "--noise-seed" && i + 1 < argc) {
+        noise_seed = std::strtoull(argv[++i], nullptr, 0);
       } else if (a == "--rate-factor" && i + 1 < argc) {
         rate_factor = std::strtod(argv[++i], nullptr);
         if (!(rate_factor >= 1)) throw std::invalid_argument("--rate-factor must be >= 1");
@@ -64,8 +80,10 @@ int main(int argc, char** argv) {
       return 1;
     }
     StudyRecord r = make_record(*spec);
-    if (!encoder || !noise || rate_factor != 1) {
+    if (!encoder || !noise || rate_factor != 1 || noise_seed || encoder_phase != 0) {
       for (Measurement* m : {&r.estimation, &r.validation}) {
+        m->x_offset += encoder_phase * m->quantum;
+        if (noise_seed) m->noise_seed = splitmix(m->noise_seed ^ *noise_seed);
         if (!encoder) m->quantum = 0;
         if (!noise) m->noise_sigma = 1e-6 * r.system.coulomb, m->noise_phi = 0;
         m->sampling_rate *= rate_factor;
