@@ -411,7 +411,7 @@ ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
     best = std::move(*g);
   }
   if (o.operators > 0 || !o.grow_operators) return best;
-  const std::size_t largest = o.max_operators > 0 ? o.max_operators : NlrOptions{}.max_operators;
+  const std::size_t largest = o.max_operators > 0 ? o.max_operators : o.operator_limit;
   while (best.base.size() < largest) {
     auto g = fit_from_nlr(r, best, o, best.base.size() + 1, under_level);
     if (!g || g->base.size() <= best.base.size() || !(fit_bic(r, *g) < fit_bic(r, best))) break;

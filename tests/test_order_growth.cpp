@@ -19,11 +19,14 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "friction/diagnose.hpp"
 #include "friction/effect_table.hpp"
 #include "friction/methods.hpp"
+#include "friction/signals.hpp"
 #include "study_design.hpp"
 #include "truth_records.hpp"
 
@@ -96,6 +99,50 @@ TEST(OrderGrowth, TheStudyRecordThatLedHereReachesTheFloor) {
   const Told t = told_case(spec, Effect::normal_load);
   ASSERT_TRUE(t.eligible) << spec.id << ": the base on the twin " << t.twin;
   EXPECT_LE(t.told, 1.2) << spec.id;
+}
+
+// Growth past NLR's first range of M = 1..8 (extension_identification.hpp, 1: Order growth).  The
+// study's systems have 3 to 12 elements, and the growth stopped at 8.  With it allowed to go on
+// while the joint BIC falls, the diagnosis's final model came closer to the reachable floor on 20
+// records of six study seeds (8835639881565398229, 101, 202, 303, 404, 505), none further.  Two
+// of the three furthest before are kept here: diagnosed, each must be named exactly and the final
+// model validate within 1.2 times the reachable floor (the study's told criterion, on the
+// diagnosis).  Through the CLI they validated at 2.92 and 1.59 times the floor with the growth
+// capped at 8, and at 1.17 and 0.67 without the cap (README, "Growth past NLR's first range");
+// here 2.89 and 1.59 against 1.17 and 0.66.  The third, stribeck-2 at seed 101 (1.60 -> 0.91
+// through the CLI), is not a test of the growth: from the unrounded trace the diagnosis ends in
+// another minimum, 1.76 times the floor with the growth and 1.60 without.
+TEST(OrderGrowth, StudyRecordsOfMoreElementsThanNlrsFirstRangeReachTheFloor) {
+  const struct {
+    std::uint64_t seed;
+    const char* id;
+    Effect effect;
+  } cases[] = {{404, "normal-load-2", Effect::normal_load},
+               {404, "position-dependence-1", Effect::position_dependence}};
+  for (const auto& c : cases) {
+    const std::optional<truth::RecordSpec> spec = truth::plan_record(c.seed, c.id);
+    ASSERT_TRUE(spec) << c.id;
+    const truth::StudyRecord s = truth::make_record(*spec);
+    ASSERT_GT(s.system.elements.size(), 8u) << c.id;
+    // Conditioned as read from a file (the encoder's staircase replaced by the displacement the
+    // models see, signals.hpp): the diagnosis a user gets.
+    Record est = record_of(s.trace_estimation), val = record_of(s.trace_validation);
+    condition_record(est);
+    condition_record(val);
+    DiagnoseOptions capped;
+    capped.method.max_operators = 8;
+    const Diagnosis grown = diagnose(est, val), at_eight = diagnose(est, val, capped);
+    std::vector<std::string> named;
+    for (const Finding& f : grown.findings)
+      named.emplace_back(f.effect ? effect_name(*f.effect) : "nonlocal-memory");
+    const double floor = s.reachable_floor_percent;
+    std::printf("%-22s %s: %zu findings, final %.3f times the floor (capped at 8: %.3f)\n", c.id,
+                s.summary().c_str(), named.size(), grown.final_validation_percent / floor,
+                at_eight.final_validation_percent / floor);
+    EXPECT_EQ(named, std::vector<std::string>{std::string(effect_name(c.effect))})
+        << c.id << " at seed " << c.seed;
+    EXPECT_LE(grown.final_validation_percent, 1.2 * floor) << c.id << " at seed " << c.seed;
+  }
 }
 
 }  // namespace
