@@ -44,8 +44,8 @@
 //    selection keeps its range: without the pieces its criterion kept falling where operators
 //    soaked up an effect (10 operators for a system of 8 with a lag and a Stribeck curve, which
 //    the diagnosis then named as a position term).  A delay is taken out as well: the operators
-//    see the displacement at t - D.  `diagnose` does not grow (its restarts run once per accepted
-//    finding, and growth costs an NLR fit per step).
+//    see the displacement at t - D.  `diagnose` grows only in its final polish (its restarts run
+//    once per accepted finding, and growth costs an NLR fit per step).
 //
 //    Order.  `sequential` (the default) adds the pieces one at a time, the one whose signature
 //    explains most of the current residual first, refitting everything at each step and
