@@ -543,13 +543,7 @@ std::vector<double> plain_relative_state(const MaxwellSlipParameters<double>& ba
   // (D = 5 samples) the estimation error of the fitted model went 0.0591 -> 0.0510 % with this
   // (the floor 0.051 %), its validation 0.339 -> 0.303 % (README, "The initial state under a
   // delay": what is left there is a reversal before the record, which no state can carry).
-  std::vector<double> shifted;
-  if (ext.delay)
-    delayed_displacement_into(std::span<const double>(r.time),
-                              std::span<const double>(r.displacement), ext.delay->delay, shifted,
-                              delay_edge_length(windows));
-  const std::span<const double> seen =
-      ext.delay ? std::span<const double>(shifted) : std::span<const double>(r.displacement);
+  const std::vector<double> seen = displacement_the_base_sees(r, ext, windows);
   const std::vector<double> d = estimate_initial_deflections(at_start, seen, f);
   std::vector<double> rho(base.size());
   for (std::size_t i = 0; i < base.size(); ++i)

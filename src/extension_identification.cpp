@@ -276,7 +276,9 @@ ExtendedFreeRun free_run_extended(const AnyModel& model, const Record& r) {
           for (double& d : out.initial) d *= level;
         } else if constexpr (std::is_same_v<B, Dnlrx<double>>) {
           const DnlrxFamily fam{p, false, pieces.frictional_lag.has_value()};
-          const DnlrxFreeRun plain = free_run_dnlrx(p, r.time, r.displacement, r.force);
+          const DnlrxFreeRun plain = free_run_dnlrx(
+              p, r.time, displacement_the_base_sees(r, pieces, record_derivative_windows(r)),
+              r.force);
           const std::vector<double> s = estimate_family_state(
               r, fam, pieces, state_from(plain.initial_deflections, p.threshold),
               value_of(ext.reference_force()));
@@ -285,7 +287,9 @@ ExtendedFreeRun free_run_extended(const AnyModel& model, const Record& r) {
           for (std::size_t i = 0; i < p.size(); ++i) out.initial.push_back(s[i] * p.threshold[i]);
         } else if constexpr (std::is_same_v<B, LuGre<double>>) {
           const LuGreFamily fam{p, false, pieces.frictional_lag.has_value()};
-          const double z0 = estimate_lugre_initial_state(p, r.time, r.displacement, r.force);
+          const double z0 = estimate_lugre_initial_state(
+              p, r.time, displacement_the_base_sees(r, pieces, record_derivative_windows(r)),
+              r.force);
           const std::vector<double> s = estimate_family_state(r, fam, pieces, {z0 / fam.zref()},
                                                               value_of(ext.reference_force()));
           out.simulated = family_run(r, fam, pieces, nullptr, s);

@@ -296,11 +296,8 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
   // at t - D.  On the record as recorded the operators cannot follow the shifted reversals, and
   // BIC stopped at 6 operators where the system's twin without the delay took 8 (2.05 times the
   // floor on a discovery-study record).
-  std::vector<double> x;
-  delayed_displacement_into(std::span<const double>(r.time),
-                            std::span<const double>(r.displacement),
-                            cur.ext.delay ? cur.ext.delay->delay : 0.0, x,
-                            cur.ext.delay ? delay_edge_length(record_derivative_windows(r)) : 0);
+  const std::vector<double> x =
+      displacement_the_base_sees(r, cur.ext, record_derivative_windows(r));
   const PiecesAlongRun run = pieces_along_run(r, cur);
   // The forces NLR runs on, in the order their fits are compared: divided by the level (and that
   // force with the dictionary's viscous take-out), then under the level (likewise).

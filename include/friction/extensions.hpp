@@ -830,6 +830,21 @@ inline std::size_t delay_edge_length(const DerivativeWindows& w) {
   return 2 * w.velocity_half_width + 1;
 }
 
+/// The displacement a model's base sees on a record: x(t - D) under a delay, continued before the
+/// record by the polynomial of its velocity window (delayed_displacement_into), else the record's
+/// own.  Whatever is estimated for the base alone (its initial state, NLR's operators) is
+/// estimated on this: on the record as recorded it would belong to motion D later.
+inline std::vector<double> displacement_the_base_sees(const Record& r,
+                                                      const ExtensionParameters<double>& ext,
+                                                      const DerivativeWindows& windows) {
+  std::vector<double> x;
+  delayed_displacement_into(std::span<const double>(r.time),
+                            std::span<const double>(r.displacement),
+                            ext.delay ? ext.delay->delay : 0.0, x,
+                            ext.delay ? delay_edge_length(windows) : 0);
+  return x;
+}
+
 namespace detail {
 /// A 128-bit fingerprint of the bits of a record's time stamps and displacement: two chains of
 /// bijective steps (a word xored in, a multiplication by an odd constant, an xor-shift) that take
