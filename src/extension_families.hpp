@@ -19,6 +19,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -597,7 +598,39 @@ bool for_each_jacobian_row(const FamilyCostFunction<Family>& cost, const double*
   return true;
 }
 
+// The motion an encoder's replicas requantise, smoothest_motion_within_quanta of the record's
+// readings, remembered for the last record and quantum (by the fingerprint of its time and
+// readings): a diagnosis asks for the covariance of many fits on one record.  8 bytes a sample.
+inline std::vector<double> replica_motion(const Record& r, double quantum) {
+  struct Entry {
+    detail::RecordFingerprint fingerprint;
+    std::size_t samples = 0;
+    double quantum = 0;
+    std::vector<double> motion;
+  };
+  static std::mutex mutex;
+  static Entry last;
+  const std::vector<double>& m = r.measured();
+  const detail::RecordFingerprint print =
+      detail::fingerprint_of(r.time, r.size(), [&](std::size_t k) { return m[k]; });
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (last.samples == r.size() && last.quantum == quantum && last.fingerprint == print)
+      return last.motion;
+  }
+  std::vector<double> motion = smoothest_motion_within_quanta(r.time, m, quantum);
+  std::lock_guard<std::mutex> lock(mutex);
+  last = Entry{print, r.size(), quantum, motion};
+  return motion;
+}
+
 // The replicas' force changes dF (above), kReplicaGroup at a time, in the order of their seeds.
+// With an encoder the replicas are made from the smoothest motion its readings allow (signals.hpp,
+// smoothest_motion_within_quanta), and dF is taken against the model's force on that motion: the
+// conditioned displacement keeps the staircase's plateaus where the motion is slow, and replicas
+// of it carried about half the spread the encoder gives a fit (README, "The replicas' motion").
+// Without one (an analog sensor's noise) they are made from the record's displacement, and dF is
+// taken against the model's force on the record.
 template <class Family>
 class ReplicaForces {
  public:
@@ -605,13 +638,33 @@ class ReplicaForces {
                 const std::vector<double>& theta, const std::vector<double>& state,
                 const std::vector<double>& residual)
       : r_(r), family_(family), pieces_(pieces), theta_(theta), state_(state),
-        residual_(residual), sensor_(estimate_displacement_resolution(r.measured())) {}
+        residual_(residual), sensor_(estimate_displacement_resolution(r.measured())) {
+    if (!sensor_.quantum) return;
+    motion_.time = r.time;
+    motion_.force = r.force;
+    motion_.normal = r.normal;
+    motion_.displacement = replica_motion(r, *sensor_.quantum);
+    // The motion is the truth of its replicas: its force with the record's windows, which on a
+    // smooth motion give its derivatives to their truncation error.
+    const DerivativeWindows w = record_derivative_windows(r);
+    try {
+      motion_force_ = family_run(motion_, family_, pieces_, theta_.data(), state_, &w);
+    } catch (const InvalidParameter&) {
+      motion_force_.clear();
+    }
+    if (!std::all_of(motion_force_.begin(), motion_force_.end(),
+                     [](double f) { return std::isfinite(f); }))
+      motion_force_.clear();
+    if (motion_force_.empty()) motion_ = Record{};  // then made from the record, as without one
+  }
   // The next group (empty when every replica was made or one could not be).
   const std::vector<std::vector<double>>& next() {
     group_.clear();
     while (!exhausted_ && next_ < kInputReplicas && group_.size() < kReplicaGroup) {
       const std::size_t j = next_++;
-      if (!remeasured_replica(r_, 0x9e3779b97f4a7c15ULL * (j + 1), replica_, sensor_, &windows_)) {
+      const bool from_motion = !motion_force_.empty();
+      if (!remeasured_replica(from_motion ? motion_ : r_, 0x9e3779b97f4a7c15ULL * (j + 1),
+                              replica_, sensor_, &windows_)) {
         exhausted_ = true;
         break;
       }
@@ -624,7 +677,7 @@ class ReplicaForces {
       bool finite = true;
       for (std::size_t k = 0; k < f.size(); ++k) {
         // The model's force on the record itself is F - residual (the cost at scale 1).
-        f[k] -= r_.force[k] - residual_[k];
+        f[k] -= from_motion ? motion_force_[k] : r_.force[k] - residual_[k];
         finite = finite && std::isfinite(f[k]);
       }
       if (finite) group_.push_back(std::move(f));
@@ -641,6 +694,8 @@ class ReplicaForces {
   const std::vector<double>& residual_;
   Resolution sensor_;
   DerivativeWindows windows_;  // the replica's, as its conditioning chose them
+  Record motion_;                     // the encoder's replicas' motion, when there is one
+  std::vector<double> motion_force_;  // the model's force on it (empty: replicas of the record)
   Record replica_;
   std::vector<std::vector<double>> group_;
   std::size_t next_ = 0;

@@ -3,6 +3,7 @@
 // record when it is present.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -397,6 +398,108 @@ TEST(Conditioning, AReplicaIsConditionedByTheRuleAndItsWindowsAreRememberedPerRe
           EXPECT_EQ(c.displacement, a.displacement) << seed;
         }
       }
+    }
+  }
+}
+
+// The smoothest motion within an encoder's readings (smoothest_motion_within_quanta), checked
+// against its own definition without the library's solver: it lies inside every tube, it is no
+// rougher than the true motion (which lies inside them too), and it satisfies the optimality
+// conditions of the constrained problem: where it is well inside its tube the gradient of the
+// roughness vanishes.  A strokes motion with rests (the slow parts where the staircase's plateaus
+// matter), at regular and at jittered sampling, strokes of 40 and 400 steps.  What it is for, the
+// spread of the replicas' fits, is judged by the discovery study's coverage (README, "The
+// replicas' motion"): the displacement's own rms does not tell the two motions apart.
+namespace {
+struct StrokesRecord {
+  Record record;               // the encoder's readings, not conditioned
+  std::vector<double> exact;   // the motion
+};
+StrokesRecord strokes_with_rests(double quantum, double stroke_quanta, double jitter,
+                                 std::uint64_t seed) {
+  StrokesRecord out;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-0.5, 0.5);
+  for (int k = 0; k < 6000; ++k) {
+    const double t = 1e-3 * (k + jitter * u(rng));
+    // Period 2 s: rest 0.4 s, a 0.6 s stroke up with a cosine profile, rest, a stroke down.
+    const double p = std::fmod(t + 2.0, 2.0);
+    double s = 0;
+    if (p >= 0.4 && p < 1.0) s = 0.5 * (1 - std::cos(kPi * (p - 0.4) / 0.6));
+    else if (p >= 1.0 && p < 1.4) s = 1;
+    else if (p >= 1.4) s = 0.5 * (1 + std::cos(kPi * (p - 1.4) / 0.6));
+    const double x = quantum * (stroke_quanta * s + 0.3 * std::sin(2 * kPi * 0.37 * t));
+    out.record.time.push_back(t);
+    out.exact.push_back(x);
+    out.record.displacement.push_back(quantum * std::round(x / quantum + 0.37) - 0.37 * quantum);
+  }
+  out.record.force.assign(out.exact.size(), 0.0);
+  return out;
+}
+// Sum of squared second divided differences times Ts^2 (Ts the median interval), in units of q,
+// and its gradient.
+double roughness(const std::vector<double>& t, const std::vector<double>& x, double q,
+                 std::vector<double>* gradient = nullptr) {
+  const std::size_t n = x.size();
+  std::vector<double> h(n - 1);
+  for (std::size_t k = 0; k + 1 < n; ++k) h[k] = t[k + 1] - t[k];
+  std::vector<double> sorted(h);
+  std::sort(sorted.begin(), sorted.end());
+  const double ts = sorted[sorted.size() / 2];
+  double sum = 0;
+  if (gradient) gradient->assign(n, 0.0);
+  for (std::size_t k = 0; k + 2 < n; ++k) {
+    const double h0 = h[k] / ts, h1 = h[k + 1] / ts, c = 2 / (h0 + h1);
+    const double w[3] = {c / h0, -c / h0 - c / h1, c / h1};
+    const double d = (w[0] * x[k] + w[1] * x[k + 1] + w[2] * x[k + 2]) / q;
+    sum += d * d;
+    if (gradient)
+      for (int j = 0; j < 3; ++j) (*gradient)[k + static_cast<std::size_t>(j)] += 2 * d * w[j];
+  }
+  return sum;
+}
+}  // namespace
+
+TEST(Conditioning, TheSmoothestMotionWithinTheQuantaSolvesItsProblem) {
+  const double q = 1e-8;
+  for (const double jitter : {0.0, 0.3}) {
+    for (const double stroke : {40.0, 400.0}) {
+      SCOPED_TRACE(testing::Message() << "jitter " << jitter << ", stroke " << stroke << " q");
+      const StrokesRecord s = strokes_with_rests(q, stroke, jitter, 7);
+      const std::vector<double>& m = s.record.displacement;
+      const std::vector<double> b =
+          friction::smoothest_motion_within_quanta(s.record.time, m, q);
+      ASSERT_EQ(b.size(), m.size());
+      for (std::size_t k = 0; k < m.size(); ++k)
+        ASSERT_LT(std::abs(b[k] - m[k]), 0.5 * q) << k;
+      std::vector<double> gradient;
+      const double rough = roughness(s.record.time, b, q, &gradient);
+      EXPECT_LT(rough, roughness(s.record.time, s.exact, q)) << "rougher than the true motion";
+      // Optimality: with the walls 0.05 q away or more, the gradient is that of the barrier at
+      // its last weight (1e-6 in units of q^2), below 2e-6 / 0.05 = 4e-5; at the walls it is
+      // what holds the motion there, several orders larger.
+      double inside = 0, largest = 0;
+      std::size_t free = 0;
+      for (std::size_t k = 0; k < m.size(); ++k) {
+        const double wall = 0.5 - std::abs(b[k] - m[k]) / q;
+        largest = std::max(largest, std::abs(gradient[k]));
+        if (wall >= 0.05) {
+          inside = std::max(inside, std::abs(gradient[k]));
+          ++free;
+        }
+      }
+      EXPECT_GT(free, m.size() / 4);
+      EXPECT_LT(inside, 4e-5) << "largest at the walls " << largest;
+      EXPECT_GT(largest, 100 * inside);
+      // The same problem in other units (time in ms, displacement in um) has the same solution.
+      std::vector<double> t_ms(m.size()), m_um(m.size());
+      for (std::size_t k = 0; k < m.size(); ++k) {
+        t_ms[k] = 1e3 * s.record.time[k];
+        m_um[k] = 1e6 * m[k];
+      }
+      const std::vector<double> b_um =
+          friction::smoothest_motion_within_quanta(t_ms, m_um, 1e6 * q);
+      for (std::size_t k = 0; k < m.size(); ++k) ASSERT_NEAR(1e-6 * b_um[k], b[k], 1e-3 * q) << k;
     }
   }
 }
