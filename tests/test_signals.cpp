@@ -476,8 +476,10 @@ TEST(Conditioning, TheSmoothestMotionWithinTheQuantaSolvesItsProblem) {
       const double rough = roughness(s.record.time, b, q, &gradient);
       EXPECT_LT(rough, roughness(s.record.time, s.exact, q)) << "rougher than the true motion";
       // Optimality: with the walls 0.05 q away or more, the gradient is that of the barrier at
-      // its last weight (1e-6 in units of q^2), below 2e-6 / 0.05 = 4e-5; at the walls it is
-      // what holds the motion there, several orders larger.
+      // its last weight mu, below 2 mu / 0.05.  The bound is that of mu = 1e-6 (4e-5), the
+      // weight the stopping rule (2 N mu below a thousandth of the roughness) passes below on
+      // any of these records; at the walls the gradient is what holds the motion there, several
+      // orders larger.
       double inside = 0, largest = 0;
       std::size_t free = 0;
       for (std::size_t k = 0; k < m.size(); ++k) {

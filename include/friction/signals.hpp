@@ -148,7 +148,8 @@ Resolution estimate_displacement_resolution(std::span<const double> displacement
 /// The smoothest motion an encoder's readings allow: the displacement b with the least sum of
 /// squared second divided differences (in time) subject to |b_k - m_k| < q / 2, m the readings
 /// as measured and q the encoder's step (a reading is the motion rounded to its grid).  Solved by
-/// a log-barrier method whose Newton steps are pentadiagonal solves: O(N) each, about 30 of them.
+/// a log-barrier method whose Newton steps are pentadiagonal solves: O(N) each, 17-19 of them on
+/// the 6,000-sample strokes records of test_signals.cpp.
 ///
 /// Why: the replicas that measure what the encoder does to a fit (remeasured_replica) need a
 /// motion to requantise.  The conditioned displacement, the best estimate of the motion sample by
