@@ -226,24 +226,29 @@ class StructuredSlipCost final : public ceres::CostFunction, public detail::RowS
               }
             }
             const JO dx = lift(c.dx), turn = lift(c.turn);
-            const JO up = lift(level * (JF(1) + af));  // the slip limits of maxwell_slip.hpp's step
-            const JO down = lift(level * (JF(1) - af));
+            // The slip limits of maxwell_slip.hpp's step, hi = up limit_i and lo = -down limit_i.
+            const JO up = lift(level * (JF(1) + af));
+            const JO minus_down = -lift(level * (JF(1) - af));
             const JF& at_turn = pieces_only.turn_level();  // motion.hpp: The level at the turn
-            const JO up_turn = lift(at_turn * (JF(1) + af));
-            const JO down_turn = lift(at_turn * (JF(1) - af));
+            const bool turned = turn.a != 0.0;              // motion.hpp, Turns between samples
+            JO up_turn, minus_down_turn;
+            if (turned) {
+              up_turn = lift(at_turn * (JF(1) + af));
+              minus_down_turn = -lift(at_turn * (JF(1) - af));
+            }
             for (std::size_t q = 0; q < e; ++q) theta_row[2 * m + q] = -f.scale * added.v[q];
             if (l) state_row[m] = -f.scale * added.v[e];
-            // Each operator (eqs. 4-5 of maxwell_slip.hpp, one operator).
+            // Each operator (eqs. 4-5 of maxwell_slip.hpp, one operator; a limit's product formed
+            // only when it binds, scalar.hpp: clamp_to_limits).
             for (std::size_t i = 0; i < m; ++i) {
               JO& d = delta[i];
-              const JO lo = -down * limit[i], hi = up * limit[i];
-              if (turn.a != 0.0)  // motion.hpp, Turns between samples
-                d = clamp(JO(clamp(JO(d + turn), JO(-down_turn * limit[i]),
-                                   JO(up_turn * limit[i])) +
-                             (dx - turn)),
-                          lo, hi);
+              if (turned)
+                d = clamp_to_limits(
+                    JO(clamp_to_limits(JO(d + turn), minus_down_turn, up_turn, limit[i]) +
+                       (dx - turn)),
+                    minus_down, up, limit[i]);
               else
-                d = clamp(JO(d + dx), lo, hi);
+                d = clamp_to_limits(JO(d + dx), minus_down, up, limit[i]);
               const double g = -f.scale * stiffness[i];  // d residual / d delta
               for (std::size_t q = 0; q < e; ++q) theta_row[2 * m + q] += g * d.v[q];
               theta_row[i] = g * d.a;  // d(k delta) / d log k = k delta

@@ -1,7 +1,10 @@
 // Physics of the basic Maxwell Slip model (paper eqs. 4-5).
 #include <gtest/gtest.h>
 
+#include <ceres/jet.h>
+
 #include <cmath>
+#include <random>
 #include <vector>
 
 #include "friction/maxwell_slip.hpp"
@@ -112,6 +115,61 @@ TEST(MaxwellSlip, JetDerivativesMatchFiniteDifferencesAndStepDoesNotAllocate) {
   friction::testing::expect_derivatives_match_finite_differences(factory, theta, time, x, 1e-4);
   auto model = factory(theta);
   friction::testing::expect_step_does_not_allocate(model, time, x);
+}
+
+// The step forms a slip limit's product only when the limit binds (scalar.hpp: clamp_to_limits).
+// Against the step as eqs. 4-5 write it, both limits formed and clamped, in Jets whose lanes carry
+// the level, the asymmetry, the increments and each threshold: the same force and deflections,
+// value and every derivative to the bit, on random motions with turns, a moving level and
+// asymmetry (a change in the order of an operation would show here, not in a tolerance).
+TEST(MaxwellSlip, TheStepIsEqs4And5ToTheBitWithJets) {
+  using J = ceres::Jet<double, 8>;
+  std::mt19937_64 rng(20261206);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    const std::size_t m = 1 + trial % 5;
+    MaxwellSlipParameters<J> p;
+    for (std::size_t i = 0; i < m; ++i) {
+      p.stiffness.push_back(J(1e4 * (1.5 + u(rng)), static_cast<int>(i % 8)));
+      p.threshold.push_back(J(1e-6 * (i + 1) * (1.2 + u(rng)), static_cast<int>((i + 3) % 8)));
+    }
+    MaxwellSlip<J> model(p);
+    std::vector<J> delta(m, J(0));
+    for (int k = 0; k < 2000; ++k) {
+      Motion<J> mo{J(3e-7 * u(rng), 5), J(0), J(1e-3)};
+      mo.level = J(1.0 + 0.4 * u(rng), 6);
+      mo.asymmetry = J(0.2 * u(rng), 7);
+      if (k % 7 == 0) {
+        mo.turn = J(2e-7 * u(rng), 4);
+        if (k % 14 == 0) mo.turn_level = J(1.0 + 0.3 * u(rng), 2);
+      }
+      // Eqs. 4-5 with both limits formed.
+      const J up = mo.level * (J(1) + mo.asymmetry), down = mo.level * (J(1) - mo.asymmetry);
+      J force(0);
+      for (std::size_t i = 0; i < m; ++i) {
+        const J lo = -down * p.threshold[i], hi = up * p.threshold[i];
+        if (mo.turn.a != 0.0) {
+          const J at_turn = mo.turn_level.a > 0.0 ? mo.turn_level : mo.level;
+          const J up_turn = at_turn * (J(1) + mo.asymmetry);
+          const J down_turn = at_turn * (J(1) - mo.asymmetry);
+          const J turned = friction::clamp(J(delta[i] + mo.turn), J(-down_turn * p.threshold[i]),
+                                           J(up_turn * p.threshold[i]));
+          delta[i] = friction::clamp(J(turned + (mo.dx - mo.turn)), lo, hi);
+        } else {
+          delta[i] = friction::clamp(J(delta[i] + mo.dx), lo, hi);
+        }
+        force += p.stiffness[i] * delta[i];
+      }
+      const J stepped = model.step(mo);
+      ASSERT_EQ(stepped.a, force.a) << trial << " " << k;
+      for (int l = 0; l < 8; ++l)
+        ASSERT_EQ(stepped.v[l], force.v[l]) << trial << " " << k << " " << l;
+      for (std::size_t i = 0; i < m; ++i) {
+        ASSERT_EQ(model.deflections()[i].a, delta[i].a);
+        for (int l = 0; l < 8; ++l) ASSERT_EQ(model.deflections()[i].v[l], delta[i].v[l]);
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -113,24 +113,25 @@ class MaxwellSlip {
     T* delta = deflection_.data();
     const std::size_t n = deflection_.size();
     T force(0);
-    const T up = m.level * (T(1) + m.asymmetry), down = m.level * (T(1) - m.asymmetry);
+    // The slip limits -down Delta_i and up Delta_i (scalar.hpp: clamp_to_limits).
+    const T up = m.level * (T(1) + m.asymmetry), minus_down = -(m.level * (T(1) - m.asymmetry));
     if (value_of(m.turn) != 0.0) {
       // Through the extremum inside the interval, at the level there (motion.hpp, Turns between
       // samples).
       const T back = m.dx - m.turn;
       const T at_turn = value_of(m.turn_level) > 0.0 ? m.turn_level : m.level;
-      const T up_turn = at_turn * (T(1) + m.asymmetry), down_turn = at_turn * (T(1) - m.asymmetry);
+      const T up_turn = at_turn * (T(1) + m.asymmetry);
+      const T minus_down_turn = -(at_turn * (T(1) - m.asymmetry));
       for (std::size_t i = 0; i < n; ++i) {
-        const T lo = -down * limit[i], hi = up * limit[i];
         const T turned =
-            clamp(T(delta[i] + m.turn), T(-down_turn * limit[i]), T(up_turn * limit[i]));
-        delta[i] = clamp(T(turned + back), lo, hi);
+            clamp_to_limits(T(delta[i] + m.turn), minus_down_turn, up_turn, limit[i]);
+        delta[i] = clamp_to_limits(T(turned + back), minus_down, up, limit[i]);
         force += k[i] * delta[i];
       }
       return force;
     }
     for (std::size_t i = 0; i < n; ++i) {
-      delta[i] = clamp(T(delta[i] + m.dx), T(-down * limit[i]), T(up * limit[i]));
+      delta[i] = clamp_to_limits(T(delta[i] + m.dx), minus_down, up, limit[i]);
       force += k[i] * delta[i];
     }
     return force;

@@ -51,6 +51,18 @@ constexpr T clamp(const T& x, const T& lo, const T& hi) {
   return x;
 }
 
+/// clamp(x, minus_down * limit, up * limit): a slip limit's product formed only when it binds.
+/// clamp compares values, and the value of a product of Jets is the product of their values, so
+/// the result is clamp's with both limits formed, to the bit; with Jets (a fit's derivatives) the
+/// products of the limits not taken were most of a Maxwell Slip step's arithmetic.
+template <typename T>
+constexpr T clamp_to_limits(const T& x, const T& minus_down, const T& up, const T& limit) {
+  const double v = value_of(x), l = value_of(limit);
+  if (v > value_of(up) * l) return up * limit;
+  if (v < value_of(minus_down) * l) return minus_down * limit;
+  return x;
+}
+
 /// |x| for double and Jets (Jets find their own `abs` by ADL).
 template <typename T>
 T abs_of(const T& x) {
