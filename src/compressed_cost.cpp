@@ -41,7 +41,28 @@ void GramAccumulator::add(const double* const* blocks, const std::vector<int>& s
 
 void GramAccumulator::flush() {
   if (used_ == 0) return;
-  gram_.selfadjointView<Eigen::Lower>().rankUpdate(rows_.topRows(used_).transpose());
+  // Columns that are zero on every gathered row add nothing; they are common (an operator's
+  // initial deflection is forgotten for good once it slips, so its column is zero from there on).
+  // The products of the others are formed alone and added where they belong: per entry the same
+  // sums over the same rows in the same order as the full product's.
+  const Eigen::Index p = rows_.cols();
+  live_.clear();
+  for (Eigen::Index c = 0; c < p; ++c)
+    if (!(rows_.col(c).head(used_).array() == 0.0).all()) live_.push_back(c);
+  const Eigen::Index nl = static_cast<Eigen::Index>(live_.size());
+  if (nl == p) {
+    gram_.selfadjointView<Eigen::Lower>().rankUpdate(rows_.topRows(used_).transpose());
+  } else if (nl > 0) {
+    live_rows_.resize(used_, nl);
+    for (Eigen::Index u = 0; u < nl; ++u)
+      live_rows_.col(u) = rows_.col(live_[static_cast<std::size_t>(u)]).head(used_);
+    live_gram_.setZero(nl, nl);
+    live_gram_.selfadjointView<Eigen::Lower>().rankUpdate(live_rows_.transpose());
+    for (Eigen::Index b = 0; b < nl; ++b)
+      for (Eigen::Index a = b; a < nl; ++a)
+        gram_(live_[static_cast<std::size_t>(a)], live_[static_cast<std::size_t>(b)]) +=
+            live_gram_(a, b);
+  }
   used_ = 0;
 }
 

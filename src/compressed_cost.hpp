@@ -36,9 +36,10 @@ namespace friction::detail {
 void normal_factor(Eigen::MatrixXd& gram, Eigen::MatrixXd& factor);
 
 /// Adds rows of [J r], one at a time, to the lower triangle of a Gram matrix ((P+1) x (P+1)):
-/// they are gathered 256 at a time (in cache) and added by one rank update per 256.  What
-/// keeps the memory of a compressed evaluation independent of N: no N x P Jacobian is stored
-/// when its rows come one by one (RowStreamingCost).
+/// they are gathered 256 at a time (in cache) and added by one rank update per 256, over the
+/// columns not zero on all of them.  What keeps the memory of a compressed evaluation
+/// independent of N: no N x P Jacobian is stored when its rows come one by one
+/// (RowStreamingCost).
 class GramAccumulator {
  public:
   explicit GramAccumulator(Eigen::MatrixXd& gram);
@@ -55,6 +56,8 @@ class GramAccumulator {
   Eigen::MatrixXd& gram_;
   Eigen::MatrixXd rows_;
   Eigen::Index used_ = 0;
+  std::vector<Eigen::Index> live_;          // the columns not zero on every gathered row
+  Eigen::MatrixXd live_rows_, live_gram_;  // those columns, and their products
 };
 
 /// Adds the rows of [J r] to the lower triangle of `gram` ((P+1) x (P+1)), J given as row-major

@@ -175,6 +175,58 @@ TEST(CompressedCost, RowsHandedOverOneByOneGiveTheSameNumbers) {
   }
 }
 
+// The accumulator leaves out of a block's product the columns that are zero on all its rows (an
+// operator's initial state is forgotten once it slips): columns zero from some row on, zero until
+// some row, zero in the middle, everywhere, and never, across block edges (256 rows), each entry
+// of the lower triangle against the sum taken here in long double, and the entries of a column
+// that is zero everywhere exactly zero.
+TEST(CompressedCost, TheGramMatrixOfRowsWithColumnsThatFallSilent) {
+  using friction::detail::GramAccumulator;
+  std::mt19937 rng(4242);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const std::size_t n = 1300;
+  const std::vector<int> sizes{4, 3};  // blocks of 4 and 3 columns, then the residual
+  std::vector<std::vector<double>> rows(n, std::vector<double>(8));
+  for (std::size_t k = 0; k < n; ++k) {
+    for (double& v : rows[k]) v = g(rng);
+    if (k >= 300) rows[k][1] = 0.0;                // silent from row 300 on
+    if (k < 700) rows[k][2] = 0.0;                 // silent until row 700
+    if (k >= 256 && k < 1024) rows[k][4] = 0.0;    // silent over three whole blocks
+    rows[k][5] = 0.0;                              // silent everywhere
+    if (k >= 511) rows[k][6] = 1e6 * rows[k][6];   // another scale
+  }
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(8, 8);
+  {
+    GramAccumulator acc(gram);
+    for (std::size_t k = 0; k < n; ++k) {
+      const double* blocks[] = {rows[k].data(), rows[k].data() + 4};
+      acc.add(blocks, sizes, rows[k][7]);
+    }
+    acc.flush();
+  }
+  for (int i = 0; i < 8; ++i)
+    for (int j = 0; j <= i; ++j) {
+      long double want = 0;
+      for (std::size_t k = 0; k < n; ++k)
+        want += static_cast<long double>(rows[k][static_cast<std::size_t>(i)]) *
+                rows[k][static_cast<std::size_t>(j)];
+      if (i == 5 || j == 5) {
+        EXPECT_EQ(gram(i, j), 0.0) << i << ", " << j;
+        continue;
+      }
+      long double ii = 0, jj = 0;
+      for (std::size_t k = 0; k < n; ++k) {
+        ii += static_cast<long double>(rows[k][static_cast<std::size_t>(i)]) *
+              rows[k][static_cast<std::size_t>(i)];
+        jj += static_cast<long double>(rows[k][static_cast<std::size_t>(j)]) *
+              rows[k][static_cast<std::size_t>(j)];
+      }
+      EXPECT_LE(std::abs(static_cast<long double>(gram(i, j)) - want),
+                1e-13L * std::sqrt(ii * jj))
+          << i << ", " << j;
+    }
+}
+
 TEST(CompressedCost, NormalFactorOfASingularGramMatrix) {
   // A zero column and two columns 1e6 apart in scale: F^T F = G to rounding, no NaN.
   std::mt19937 rng(11);
