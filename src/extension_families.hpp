@@ -458,17 +458,29 @@ FamilyFit fit_family(const Record& r, const Family& family, const std::vector<do
   return out;
 }
 
-// Free-run force of a family at given pieces and state (double).
+// Free-run force of a family at given pieces and state (double), on a record's signals.
+template <class Family>
+std::vector<double> family_run(std::span<const double> time, std::span<const double> displacement,
+                               std::span<const double> normal,
+                               std::span<const double> measured_displacement,
+                               const Family& family, const ExtensionParameters<double>& ext,
+                               const double* theta_base, const std::vector<double>& state,
+                               const DerivativeWindows* windows) {
+  auto model = family.template make<double>(theta_base, ext);
+  family.template set_state<double>(model, theta_base, state.data());
+  return simulate_extended(model, time, displacement, normal, windows, measured_displacement);
+}
+
+// The same on a record.
 template <class Family>
 std::vector<double> family_run(const Record& r, const Family& family,
                                const ExtensionParameters<double>& ext, const double* theta_base,
                                const std::vector<double>& state,
                                const DerivativeWindows* windows = nullptr) {
-  auto model = family.template make<double>(theta_base, ext);
-  family.template set_state<double>(model, theta_base, state.data());
-  return simulate_extended(
-      model, std::span<const double>(r.time), std::span<const double>(r.displacement),
-      std::span<const double>(r.normal), windows, std::span<const double>(r.measured_displacement));
+  return family_run(std::span<const double>(r.time), std::span<const double>(r.displacement),
+                    std::span<const double>(r.normal),
+                    std::span<const double>(r.measured_displacement), family, ext, theta_base,
+                    state, windows);
 }
 
 inline double rss_of(const Record& r, const std::vector<double>& f) {
@@ -600,13 +612,14 @@ bool for_each_jacobian_row(const FamilyCostFunction<Family>& cost, const double*
 
 // The motion an encoder's replicas requantise, smoothest_motion_within_quanta of the record's
 // readings, remembered for the last record and quantum (by the fingerprint of its time and
-// readings): a diagnosis asks for the covariance of many fits on one record.  8 bytes a sample.
-inline std::vector<double> replica_motion(const Record& r, double quantum) {
+// readings): a diagnosis asks for the covariance of many fits on one record.  Shared, not copied:
+// 8 bytes a sample for the cache and every covariance in progress together.
+inline std::shared_ptr<const std::vector<double>> replica_motion(const Record& r, double quantum) {
   struct Entry {
     detail::RecordFingerprint fingerprint;
     std::size_t samples = 0;
     double quantum = 0;
-    std::vector<double> motion;
+    std::shared_ptr<const std::vector<double>> motion;
   };
   static std::mutex mutex;
   static Entry last;
@@ -618,7 +631,8 @@ inline std::vector<double> replica_motion(const Record& r, double quantum) {
     if (last.samples == r.size() && last.quantum == quantum && last.fingerprint == print)
       return last.motion;
   }
-  std::vector<double> motion = smoothest_motion_within_quanta(r.time, m, quantum);
+  auto motion = std::make_shared<const std::vector<double>>(
+      smoothest_motion_within_quanta(r.time, m, quantum));
   std::lock_guard<std::mutex> lock(mutex);
   last = Entry{print, r.size(), quantum, motion};
   return motion;
@@ -640,22 +654,21 @@ class ReplicaForces {
       : r_(r), family_(family), pieces_(pieces), theta_(theta), state_(state),
         residual_(residual), sensor_(estimate_displacement_resolution(r.measured())) {
     if (!sensor_.quantum) return;
-    motion_.time = r.time;
-    motion_.force = r.force;
-    motion_.normal = r.normal;
-    motion_.displacement = replica_motion(r, *sensor_.quantum);
+    motion_ = replica_motion(r, *sensor_.quantum);
     // The motion is the truth of its replicas: its force with the record's windows, which on a
     // smooth motion give its derivatives to their truncation error.
     const DerivativeWindows w = record_derivative_windows(r);
     try {
-      motion_force_ = family_run(motion_, family_, pieces_, theta_.data(), state_, &w);
+      motion_force_ = family_run(std::span<const double>(r.time), std::span<const double>(*motion_),
+                                 std::span<const double>(r.normal), {}, family_, pieces_,
+                                 theta_.data(), state_, &w);
     } catch (const InvalidParameter&) {
       motion_force_.clear();
     }
     if (!std::all_of(motion_force_.begin(), motion_force_.end(),
                      [](double f) { return std::isfinite(f); }))
       motion_force_.clear();
-    if (motion_force_.empty()) motion_ = Record{};  // then made from the record, as without one
+    if (motion_force_.empty()) motion_.reset();  // then made from the record, as without one
   }
   // The next group (empty when every replica was made or one could not be).
   const std::vector<std::vector<double>>& next() {
@@ -663,8 +676,8 @@ class ReplicaForces {
     while (!exhausted_ && next_ < kInputReplicas && group_.size() < kReplicaGroup) {
       const std::size_t j = next_++;
       const bool from_motion = !motion_force_.empty();
-      if (!remeasured_replica(from_motion ? motion_ : r_, 0x9e3779b97f4a7c15ULL * (j + 1),
-                              replica_, sensor_, &windows_)) {
+      if (!remeasured_replica(r_, from_motion ? *motion_ : r_.displacement,
+                              0x9e3779b97f4a7c15ULL * (j + 1), replica_, sensor_, &windows_)) {
         exhausted_ = true;
         break;
       }
@@ -694,7 +707,8 @@ class ReplicaForces {
   const std::vector<double>& residual_;
   Resolution sensor_;
   DerivativeWindows windows_;  // the replica's, as its conditioning chose them
-  Record motion_;                     // the encoder's replicas' motion, when there is one
+  // The encoder's replicas' motion, when there is one (at the record's time stamps).
+  std::shared_ptr<const std::vector<double>> motion_;
   std::vector<double> motion_force_;  // the model's force on it (empty: replicas of the record)
   Record replica_;
   std::vector<std::vector<double>> group_;

@@ -18,6 +18,7 @@
 
 #include "friction/error.hpp"
 #include "friction/metrics.hpp"
+#include "friction/record_fingerprint.hpp"
 #include "friction/sample_derivatives.hpp"
 #include "number_format.hpp"
 #include "sample_statistics.hpp"
@@ -425,8 +426,10 @@ namespace {
 
 // The windows the rule chose on replicas of recent records (remeasured_replica).  A pure function
 // of the record's time and displacement, the sensor the replica is measured with and the seed, so
-// a hit gives what computing them again would; the records are kept as copies and compared
-// exactly.
+// a hit gives what computing them again would.  A record is recognised by the fingerprint of its
+// time and displacement (record_fingerprint.hpp): copies to compare cost 16 bytes a sample for
+// each of the records remembered, and a diagnosis remembers two (the record and the motion its
+// encoder's replicas are made from).
 class ReplicaWindows {
  public:
   struct Key {
@@ -435,37 +438,42 @@ class ReplicaWindows {
     double noise;
     bool operator==(const Key&) const = default;
   };
-  std::optional<DerivativeWindows> find(const Record& r, const Key& key) {
+  struct Print {
+    detail::RecordFingerprint fingerprint;
+    std::size_t samples = 0;
+    bool operator==(const Print&) const = default;
+  };
+  static Print print_of(std::span<const double> time, std::span<const double> displacement) {
+    const auto x = [&](std::size_t k) { return displacement[k]; };
+    return {detail::fingerprint_of(time, displacement.size(), x), displacement.size()};
+  }
+  std::optional<DerivativeWindows> find(const Print& p, const Key& key) {
     std::lock_guard<std::mutex> lock(mutex_);
     for (const auto& e : entries_)
-      if (e->time == r.time && e->displacement == r.displacement)
-        for (const auto& [k, w] : e->windows)
+      if (e.print == p)
+        for (const auto& [k, w] : e.windows)
           if (k == key) return w;
     return std::nullopt;
   }
-  void remember(const Record& r, const Key& key, const DerivativeWindows& w) {
+  void remember(const Print& p, const Key& key, const DerivativeWindows& w) {
     std::lock_guard<std::mutex> lock(mutex_);
     for (auto& e : entries_)
-      if (e->time == r.time && e->displacement == r.displacement) {
-        e->windows.emplace_back(key, w);
+      if (e.print == p) {
+        e.windows.emplace_back(key, w);
         return;
       }
     if (entries_.size() == kRecords) entries_.pop_back();
-    auto e = std::make_unique<Entry>();
-    e->time = r.time;
-    e->displacement = r.displacement;
-    e->windows.emplace_back(key, w);
-    entries_.push_front(std::move(e));
+    entries_.push_front(Entry{p, {{key, w}}});
   }
 
  private:
   static constexpr std::size_t kRecords = 4;
   struct Entry {
-    std::vector<double> time, displacement;
+    Print print;
     std::vector<std::pair<Key, DerivativeWindows>> windows;
   };
   std::mutex mutex_;
-  std::deque<std::unique_ptr<Entry>> entries_;
+  std::deque<Entry> entries_;
 };
 
 ReplicaWindows& replica_windows() {
@@ -481,24 +489,24 @@ namespace {
 // a2[k] = A(k, k + 2).
 struct Pentadiagonal {
   std::vector<double> a0, a1, a2;
-  void multiply(const std::vector<double>& x, std::vector<double>& y) const {
+  // Row k of A x, x given by x(j).
+  template <class X>
+  double row(std::size_t k, const X& x) const {
     const std::size_t n = a0.size();
-    for (std::size_t k = 0; k < n; ++k) {
-      double s = a0[k] * x[k];
-      if (k + 1 < n) s += a1[k] * x[k + 1];
-      if (k + 2 < n) s += a2[k] * x[k + 2];
-      if (k >= 1) s += a1[k - 1] * x[k - 1];
-      if (k >= 2) s += a2[k - 2] * x[k - 2];
-      y[k] = s;
-    }
+    double s = a0[k] * x(k);
+    if (k + 1 < n) s += a1[k] * x(k + 1);
+    if (k + 2 < n) s += a2[k] * x(k + 2);
+    if (k >= 1) s += a1[k - 1] * x(k - 1);
+    if (k >= 2) s += a2[k - 2] * x(k - 2);
+    return s;
   }
 };
 
-// Solves (A with diagonal `diagonal`) x = rhs for a positive definite pentadiagonal A by LDL^T:
-// L unit lower with two subdiagonals (l1, l2), D in `diagonal` (overwritten), O(N), no fill-in.
+// Solves (A with diagonal `diagonal`) x = rhs in place (x holds rhs on entry) for a positive
+// definite pentadiagonal A by LDL^T: L unit lower with two subdiagonals (l1, l2), D in `diagonal`
+// (overwritten), O(N), no fill-in.
 void solve_pentadiagonal(const Pentadiagonal& a, std::vector<double>& diagonal,
-                         std::vector<double>& l1, std::vector<double>& l2,
-                         const std::vector<double>& rhs, std::vector<double>& x) {
+                         std::vector<double>& l1, std::vector<double>& l2, std::vector<double>& x) {
   const std::size_t n = diagonal.size();
   for (std::size_t k = 0; k < n; ++k) {
     double d = diagonal[k];
@@ -510,7 +518,7 @@ void solve_pentadiagonal(const Pentadiagonal& a, std::vector<double>& diagonal,
     l2[k] = k + 2 < n ? a.a2[k] / d : 0.0;
   }
   for (std::size_t k = 0; k < n; ++k) {
-    double y = rhs[k];
+    double y = x[k];
     if (k >= 1) y -= l1[k - 1] * x[k - 1];
     if (k >= 2) y -= l2[k - 2] * x[k - 2];
     x[k] = y;
@@ -544,8 +552,10 @@ std::vector<double> smoothest_motion_within_quanta(std::span<const double> time,
   FRICTION_CHECK(ts > 0 && std::all_of(h.begin(), h.end(), [](double v) { return v > 0; }),
                  "smoothest_motion_within_quanta: time must increase");
   sorted = {};
-  std::vector<double> m(n);
-  for (std::size_t k = 0; k < n; ++k) m[k] = (measured[k] - measured[0]) / quantum;
+  // The reading k in quanta.  Vectors of the record's length are what this costs (a diagnosis of
+  // a long record calls it beside other work): eight of them, everything else formed on the fly.
+  const double origin = measured[0];
+  const auto m = [&](std::size_t k) { return (measured[k] - origin) / quantum; };
   // H = D^T D, row r of D the second divided difference at sample r + 1 times Ts^2.
   Pentadiagonal hessian{std::vector<double>(n), std::vector<double>(n), std::vector<double>(n)};
   for (std::size_t r = 0; r + 2 < n; ++r) {
@@ -566,72 +576,79 @@ std::vector<double> smoothest_motion_within_quanta(std::span<const double> time,
   // at the readings, the tubes' centres.  A fixed last weight (1e-6) was not enough: on a smooth
   // motion the objective itself is of that order times N, and the test below found the result
   // rougher than the true motion.
-  std::vector<double> b(m), g(n), hb(n), diagonal(n), l1(n), l2(n), step(n), trial(n);
-  const auto barrier_objective = [&](const std::vector<double>& x, double mu) {
-    hessian.multiply(x, hb);
+  std::vector<double> b(n), diagonal(n), l1(n), l2(n), step(n);
+  for (std::size_t k = 0; k < n; ++k) b[k] = m(k);
+  const auto at_b = [&](std::size_t j) { return b[j]; };
+  // The barrier objective at b + t step.
+  const auto barrier_objective = [&](double t, double mu) {
+    const auto x = [&](std::size_t j) { return b[j] + t * step[j]; };
     double s = 0;
     for (std::size_t k = 0; k < n; ++k) {
-      const double below = x[k] - (m[k] - 0.5), above = (m[k] + 0.5) - x[k];
+      const double xk = x(k);
+      const double below = xk - (m(k) - 0.5), above = (m(k) + 0.5) - xk;
       if (!(below > 0 && above > 0)) return std::numeric_limits<double>::infinity();
-      s += 0.5 * x[k] * hb[k] - mu * (std::log(below) + std::log(above));
+      s += 0.5 * xk * hessian.row(k, x) - mu * (std::log(below) + std::log(above));
     }
     return s;
   };
+  // Minus the barrier objective's gradient at b, entry k.
+  const auto minus_gradient = [&](std::size_t k, double mu) {
+    const double below = b[k] - (m(k) - 0.5), above = (m(k) + 0.5) - b[k];
+    return -(hessian.row(k, at_b) - mu / below + mu / above);
+  };
   constexpr int kMaxNewtonSteps = 100;  // per barrier level; 3-5 are usual
   constexpr int kMaxLevels = 30;
-  const auto roughness = [&](const std::vector<double>& x) {
-    hessian.multiply(x, hb);
+  const auto roughness = [&] {
     double s = 0;
-    for (std::size_t k = 0; k < n; ++k) s += x[k] * hb[k];
+    for (std::size_t k = 0; k < n; ++k) s += b[k] * hessian.row(k, at_b);
     return s;
   };
   double mu = 1.0;
   for (int level = 0; level < kMaxLevels; ++level, mu *= 0.1) {
     // The barrier's optimum is within 2 N mu of the constrained one in the objective: stop at a
     // thousandth of the objective itself.
-    if (level > 0 && 2.0 * static_cast<double>(n) * mu < 1e-3 * roughness(b)) break;
+    if (level > 0 && 2.0 * static_cast<double>(n) * mu < 1e-3 * roughness()) break;
     for (int it = 0; it < kMaxNewtonSteps; ++it) {
-      hessian.multiply(b, hb);
       for (std::size_t k = 0; k < n; ++k) {
-        const double below = b[k] - (m[k] - 0.5), above = (m[k] + 0.5) - b[k];
-        g[k] = -(hb[k] - mu / below + mu / above);  // the right-hand side: minus the gradient
+        const double below = b[k] - (m(k) - 0.5), above = (m(k) + 0.5) - b[k];
+        step[k] = minus_gradient(k, mu);  // the right-hand side, solved for in place
         diagonal[k] = hessian.a0[k] + mu / (below * below) + mu / (above * above);
       }
-      solve_pentadiagonal(hessian, diagonal, l1, l2, g, step);
+      solve_pentadiagonal(hessian, diagonal, l1, l2, step);
       double decrement = 0;
-      for (std::size_t k = 0; k < n; ++k) decrement += g[k] * step[k];
+      for (std::size_t k = 0; k < n; ++k) decrement += minus_gradient(k, mu) * step[k];
       if (!(decrement >= 1e-2 * static_cast<double>(n) * mu)) break;
       // The longest step that stays inside every tube (99 % of the way to the nearest wall),
       // halved until the barrier objective falls by a quarter of the decrement's promise.
       double t = 1.0;
       for (std::size_t k = 0; k < n; ++k) {
-        const double below = b[k] - (m[k] - 0.5), above = (m[k] + 0.5) - b[k];
+        const double below = b[k] - (m(k) - 0.5), above = (m(k) + 0.5) - b[k];
         if (step[k] < 0) t = std::min(t, 0.99 * below / -step[k]);
         if (step[k] > 0) t = std::min(t, 0.99 * above / step[k]);
       }
-      const double f0 = barrier_objective(b, mu);
+      const double f0 = barrier_objective(0.0, mu);
       for (;;) {
-        for (std::size_t k = 0; k < n; ++k) trial[k] = b[k] + t * step[k];
-        if (barrier_objective(trial, mu) <= f0 - 0.25 * t * decrement || t < 1e-12) break;
+        if (barrier_objective(t, mu) <= f0 - 0.25 * t * decrement || t < 1e-12) break;
         t *= 0.5;
       }
       if (t < 1e-12) break;
-      b.swap(trial);
+      for (std::size_t k = 0; k < n; ++k) b[k] += t * step[k];
     }
   }
-  std::vector<double> out(n);
-  for (std::size_t k = 0; k < n; ++k) out[k] = measured[0] + quantum * b[k];
-  return out;
+  for (std::size_t k = 0; k < n; ++k) b[k] = origin + quantum * b[k];
+  return b;
 }
 
-bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica,
-                        const Resolution& res, DerivativeWindows* windows) {
+bool remeasured_replica(const Record& record, std::span<const double> motion, std::uint64_t seed,
+                        Record& replica, const Resolution& res, DerivativeWindows* windows) {
+  FRICTION_CHECK(motion.size() == record.size(), "remeasured_replica: a motion of ", motion.size(),
+                 " samples for a record of ", record.size());
   if (!res.quantum && !(res.noise > 0)) return false;
   std::mt19937_64 rng(seed);
   replica.time = record.time;
   replica.force = record.force;
   replica.normal = record.normal;
-  std::vector<double> x(record.displacement);
+  std::vector<double> x(motion.begin(), motion.end());
   if (res.quantum) {
     const double q = *res.quantum;
     const double u = std::uniform_real_distribution<double>(0.0, q)(rng);
@@ -645,11 +662,12 @@ bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replic
   if (n >= 16) {
     // What displacement_the_models_see does, with the rule's choice remembered.
     const ReplicaWindows::Key key{seed, res.quantum.value_or(0.0), res.noise};
-    if (auto known = replica_windows().find(record, key)) {
+    const ReplicaWindows::Print print = ReplicaWindows::print_of(record.time, motion);
+    if (auto known = replica_windows().find(print, key)) {
       w = *known;
     } else {
       w = choose_derivative_windows(replica.time, x);
-      replica_windows().remember(record, key, w);
+      replica_windows().remember(print, key, w);
     }
   } else {
     w = record_derivative_windows(replica.time, x);
@@ -664,6 +682,12 @@ bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replic
     replica.measured_displacement = std::move(x);
   }
   return true;
+}
+
+bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica,
+                        const Resolution& sensor, DerivativeWindows* windows) {
+  return remeasured_replica(record, std::span<const double>(record.displacement), seed, replica,
+                            sensor, windows);
 }
 
 bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica) {

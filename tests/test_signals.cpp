@@ -402,6 +402,52 @@ TEST(Conditioning, AReplicaIsConditionedByTheRuleAndItsWindowsAreRememberedPerRe
   }
 }
 
+// A replica of another motion at a record's time stamps (the overload the covariance uses for the
+// smoothest motion within the quanta) is the replica of a record holding that motion, windows
+// included; and another motion at the same time stamps is not given the remembered one's windows
+// (the memory knows a record by a fingerprint of its time and displacement, not by copies).
+TEST(Conditioning, AReplicaOfAMotionIsTheReplicaOfARecordHoldingIt) {
+  const double q = 2e-8;
+  Record r;
+  for (int k = 0; k < 3000; ++k) {
+    const double t = 5e-4 * k;
+    r.time.push_back(t);
+    r.displacement.push_back(q * std::round(4e-6 * std::sin(2 * kPi * 1.7 * t) / q));
+  }
+  r.force = maxwell_slip_force(r.time, r.displacement);
+  friction::condition_record(r);
+  const friction::Resolution sensor = friction::estimate_displacement_resolution(r.measured());
+  ASSERT_TRUE(sensor.quantum.has_value());
+  const auto motion_at = [&](double frequency) {
+    std::vector<double> x(r.size());
+    for (std::size_t k = 0; k < r.size(); ++k)
+      x[k] = 4e-6 * std::sin(2 * kPi * frequency * r.time[k]) * (1 + 0.3 * std::sin(r.time[k]));
+    return x;
+  };
+  const std::vector<double> slow = motion_at(1.7), fast = motion_at(9.0);
+  Record holding = r;
+  holding.displacement = slow;
+  int differ = 0;
+  for (std::uint64_t seed = 11; seed <= 14; ++seed) {
+    Record a, b, c;
+    friction::DerivativeWindows wa, wb, wc;
+    ASSERT_TRUE(friction::remeasured_replica(r, slow, seed, a, sensor, &wa));
+    ASSERT_TRUE(friction::remeasured_replica(holding, seed, b, sensor, &wb));
+    EXPECT_EQ(wa, wb) << seed;
+    EXPECT_EQ(a.displacement, b.displacement) << seed;
+    EXPECT_EQ(a.measured_displacement, b.measured_displacement) << seed;
+    EXPECT_EQ(a.force, r.force) << seed;
+    // With the slow motion's windows remembered for this seed, the fast one gets the rule's own.
+    ASSERT_TRUE(friction::remeasured_replica(r, fast, seed, c, sensor, &wc));
+    EXPECT_EQ(wc, friction::choose_derivative_windows(c.time, c.measured_displacement)) << seed;
+    differ += wc == wa ? 0 : 1;
+  }
+  EXPECT_GT(differ, 0) << "the two motions' replicas should get different windows";
+  const std::vector<double> short_motion(slow.begin(), slow.end() - 1);
+  Record e;
+  EXPECT_THROW(friction::remeasured_replica(r, short_motion, 1, e, sensor), friction::Error);
+}
+
 // The smoothest motion within an encoder's readings (smoothest_motion_within_quanta), checked
 // against its own definition without the library's solver: it lies inside every tube, it is no
 // rougher than the true motion (which lies inside them too), and it satisfies the optimality

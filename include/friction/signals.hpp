@@ -171,19 +171,26 @@ std::vector<double> smoothest_motion_within_quanta(std::span<const double> time,
 /// replica).  Time, force and normal force are the record's.  What the models' input error does to
 /// a fit is measured on such replicas (the covariance of extension_families.hpp): the errors of a
 /// staircase depend on the motion (constant at rest, correlated over a slow presliding loop), which
-/// white noise of q / sqrt(12) would not reproduce (the covariance passes a record holding the
-/// smoothest motion within the quanta instead, above).  `seed` picks the replica; the same seed
+/// white noise of q / sqrt(12) would not reproduce (the covariance passes the smoothest motion
+/// within the quanta instead, above, to the overload that takes a motion).  `seed` picks the replica; the same seed
 /// gives the same replica.  False (the record unchanged) when the sensor has neither a quantum nor
 /// noise.
 ///
 /// `sensor`: estimate_displacement_resolution(record.measured()), when the caller makes many
 /// replicas of one record.  `windows` (when given) receives the windows the rule chose on the
 /// replica, which a simulation of the replica needs (simulate_extended would choose them again).
-/// The rule's choice on a replica is remembered for the last few records (by their time and
-/// displacement, compared exactly) and the seed: a diagnosis asks for the same 24 replicas of its
-/// estimation record at every report, and choosing the windows was a tenth of it.
+/// The rule's choice on a replica is remembered for the last few records (by a fingerprint of
+/// their time and displacement, record_fingerprint.hpp) and the seed: a diagnosis asks for the
+/// same 24 replicas of its estimation record at every report, and choosing the windows was a
+/// tenth of it.
 bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica,
                         const Resolution& sensor, DerivativeWindows* windows = nullptr);
+/// The same for another motion at the record's time stamps (`motion`, one value per sample, in
+/// place of the record's displacement): the smoothest motion within an encoder's quanta, without
+/// a copy of the record to hold it.
+bool remeasured_replica(const Record& record, std::span<const double> motion, std::uint64_t seed,
+                        Record& replica, const Resolution& sensor,
+                        DerivativeWindows* windows = nullptr);
 bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica);
 
 /// Force noise standard deviation [N]: noise_level, or quantum / sqrt(12) when that is 0.
