@@ -4,6 +4,7 @@
 #include <ceres/jet.h>
 
 #include <cmath>
+#include <random>
 #include <vector>
 
 #include "friction/static_friction.hpp"
@@ -41,6 +42,40 @@ TEST(StribeckCurve, JetDerivativesAreFiniteAtRestAndMatchTheCurveAway) {
   const double v = 2.5e-3, h = 1e-7;
   auto gq = [&](double q) { return StribeckCurve<double>{1.0, 1.5, 1e-3, q}(v); };
   EXPECT_NEAR(g(Jet(v)).v[3], (gq(0.7 + h) - gq(0.7 - h)) / (2 * h), 1e-7);
+}
+
+// Far above vs the weight's Jet is formed without its two exponentials (stribeck.hpp): the
+// same value and lanes as exp(-exp(q log(|v| / vs))) written here, to the bit and to the sign of
+// every zero, on both sides of the cut (|v|/vs)^q = e^6.62 and with lanes of either sign and +-0.
+TEST(StribeckCurve, TheWeightFarAboveVsIsTheTwoExponentialsToTheBit) {
+  using Jet = ceres::Jet<double, 6>;
+  std::mt19937_64 rng(61206);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int cut = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    const double q = 0.5 + 3.0 * (u(rng) + 1.0);
+    const double ratio = std::exp((0.5 + 0.5 * u(rng)) * 20.0 / q);  // (|v|/vs)^q up to e^20
+    const double sign = trial % 2 ? 1.0 : -1.0;
+    Jet v(sign * 1e-3 * ratio), vs(1e-3), qj(q);
+    for (int l = 0; l < 6; ++l) {
+      const int pick = (trial + l) % 5;
+      const double lane = pick == 0 ? 0.0 : pick == 1 ? -0.0 : u(rng);
+      (l % 3 == 0 ? v : l % 3 == 1 ? vs : qj).v[l] = lane;
+    }
+    const Jet w = friction::stribeck_weight(v, vs, qj);
+    using std::exp;
+    using std::log;
+    const Jet want = exp(-exp(qj * log(Jet(sign * v) / vs)));
+    cut += qj.a * std::log(ratio) > 6.62 ? 1 : 0;
+    ASSERT_EQ(std::signbit(w.a), std::signbit(want.a)) << trial;
+    ASSERT_EQ(w.a, want.a) << trial;
+    for (int l = 0; l < 6; ++l) {
+      ASSERT_EQ(w.v[l], want.v[l]) << trial << " " << l;
+      ASSERT_EQ(std::signbit(w.v[l]), std::signbit(want.v[l])) << trial << " " << l;
+    }
+  }
+  EXPECT_GT(cut, 1000) << "too few samples beyond the cut to test it";
+  EXPECT_LT(cut, 3000) << "too few samples before the cut";
 }
 
 TEST(StaticFriction, CurveValuesSignAndLevel) {

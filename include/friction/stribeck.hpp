@@ -43,6 +43,17 @@ T stribeck_weight(const T& v, const T& stribeck_velocity, const T& stribeck_expo
     // exactly, as the two exponentials would give.  Sliding far above vs is most of a record's
     // samples, and the exponentials were a tenth of a diagnosis.
     if (power_log > 6.62) return 0.0;
+  } else if constexpr (std::is_same_v<decltype(power_log.a), double>) {
+    // The same for a Jet of doubles (a fit's derivatives).  There exp(-exp(p)) is
+    // (0, 0 * -(e p.v)) with e = exp(p.a) finite and > 749 while p.a < 709, and e p.v has the
+    // sign of p.v and is finite while |p.v| < 1e300: so the lanes are 0 * -p.v, signs of zero
+    // included, without the two exponentials.
+    if (power_log.a > 6.62 && power_log.a < 709.0 &&
+        power_log.v.cwiseAbs().maxCoeff() < 1e300) {
+      T w(0.0);
+      w.v = 0.0 * (-power_log.v);
+      return w;
+    }
   }
   return exp(-exp(power_log));
 }
