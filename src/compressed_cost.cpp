@@ -44,7 +44,8 @@ void GramAccumulator::flush() {
   // Columns that are zero on every gathered row add nothing; they are common (an operator's
   // initial deflection is forgotten for good once it slips, so its column is zero from there on).
   // The products of the others are formed alone and added where they belong: per entry the same
-  // sums over the same rows in the same order as the full product's.
+  // terms as the full product's, summed by Eigen's kernel for the smaller matrix in another order
+  // (the numbers move at rounding; README, "Where a diagnosis of data/ spends its time").
   const Eigen::Index p = rows_.cols();
   live_.clear();
   for (Eigen::Index c = 0; c < p; ++c)
