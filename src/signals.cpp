@@ -6,7 +6,6 @@
 #include <cstdio>
 #include <deque>
 #include <limits>
-#include <memory>
 #include <mutex>
 #include <optional>
 #include <random>

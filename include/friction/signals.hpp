@@ -172,9 +172,9 @@ std::vector<double> smoothest_motion_within_quanta(std::span<const double> time,
 /// a fit is measured on such replicas (the covariance of extension_families.hpp): the errors of a
 /// staircase depend on the motion (constant at rest, correlated over a slow presliding loop), which
 /// white noise of q / sqrt(12) would not reproduce (the covariance passes the smoothest motion
-/// within the quanta instead, above, to the overload that takes a motion).  `seed` picks the replica; the same seed
-/// gives the same replica.  False (the record unchanged) when the sensor has neither a quantum nor
-/// noise.
+/// within the quanta instead, above, to the overload that takes a motion).  `seed` picks the
+/// replica; the same seed gives the same replica.  False (the record unchanged) when the sensor
+/// has neither a quantum nor noise.
 ///
 /// `sensor`: estimate_displacement_resolution(record.measured()), when the caller makes many
 /// replicas of one record.  `windows` (when given) receives the windows the rule chose on the
