@@ -396,7 +396,7 @@ Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double
   // left to explain at all is judged against the floor with the displacement's sampling in it
   // too (c.validation_measurement_percent, an estimate good to its order of magnitude: it
   // decides that nothing is left, it does not scale the gain asked for).
-  const double floor = c.validation_floor_percent + c.validation_measurement_percent;
+  const double floor = c.validation_floor_with_sampling();
   v.validation_required =
       val0 - o.min_excess_share * std::max(val0 - c.validation_floor_percent, 0.0);
   v.validation = std::isnan(val1)                 ? Verdict::Validation::not_evaluated
@@ -432,8 +432,12 @@ std::vector<Tried> fit_candidates(const Context& c, const State& s,
   check_nested(c, s, out);
   // The lag on the round's Stribeck curve (lag_on_stribeck), when the curve passes rules (a) and
   // (b) and no nested check turned it down; then the checks again, for that lag (each check
-  // depends on its candidate's fit only, so the others keep their verdicts).
-  if (!s.ext.viscous && !s.ext.stribeck) {
+  // depends on its candidate's fit only, so the others keep their verdicts).  Not on a model that
+  // validates at the floor: there no candidate passes rule (c), so the round accepts nothing
+  // whichever lag it holds, and this fit, the slowest of a round (1.0 of the 2.4 s of a
+  // single-thread diagnosis of data/bench/strokes, whose baseline is at the floor), would only
+  // change which of two turned-down lags the document shows.
+  if (!s.ext.viscous && !s.ext.stribeck && s.validation > c.validation_floor_with_sampling()) {
     Tried* lag = nullptr;
     const Tried* stribeck = nullptr;
     for (auto& t : out) {

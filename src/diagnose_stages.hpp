@@ -65,6 +65,12 @@ struct Context {
   double validation_measurement_percent = 0;
   /// The position subtracted from both records (position_origin.hpp): 0 when not shifted.
   double position_origin = 0;
+
+  /// The validation floor with the displacement's sampling in it: a model validating at or below
+  /// it leaves nothing for a piece to explain, so no candidate on it passes rule (c).
+  double validation_floor_with_sampling() const {
+    return validation_floor_percent + validation_measurement_percent;
+  }
 };
 
 // ---- baseline -----------------------------------------------------------------------------

@@ -237,6 +237,34 @@ TEST(DiagnoseCli, JsonDocumentFollowsTheContract) {
   EXPECT_EQ(run_cli("diagnose --data " + dir.file("r.csv") + " --baseline nonsense").status, 2);
 }
 
+// A round on a model that validates at the floor accepts nothing (rule c), so the lag is not fitted
+// again on the round's Stribeck curve there: that fit, the slowest of a round, could only change
+// which of two turned-down lags the document shows.  The strokes bench record is such a record:
+// its baseline validates at the floor, and its Stribeck candidate passes the estimation rules,
+// which is what would start the lag on the curve.  The lag shown must be the one with its viscous
+// companion (lag time, viscous, the lag's initial offset: 3 numbers; on the curve it is 5).
+TEST(DiagnoseCli, NoLagOnTheStribeckCurveWhereNothingIsLeftToExplain) {
+  const std::string bench = std::string(FRICTION_SOURCE_DIR) + "/data/bench/strokes/";
+  const auto res = run_cli("diagnose --data " + bench + "est.csv --validate " + bench +
+                           "val.csv --format json");
+  ASSERT_EQ(res.status, 0) << res.err;
+  const Json j = Json::parse(res.out);
+  EXPECT_TRUE(j["findings"].empty()) << j["findings"].dump(1);
+  const Json* stribeck = nullptr;
+  const Json* lag = nullptr;
+  for (const Json& c : j["candidates"]) {
+    EXPECT_FALSE(c["earns_place"].get<bool>()) << c.dump(1);
+    if (c["effect"] == "stribeck") stribeck = &c;
+    if (c["effect"] == "frictional-lag") lag = &c;
+  }
+  ASSERT_TRUE(stribeck && lag) << j["candidates"].dump(1);
+  // The precondition: the curve passed rules (a) and (b) and was turned down at the floor.
+  ASSERT_NE(stribeck->at("verdict").get<std::string>().find("already at the floor"),
+            std::string::npos)
+      << stribeck->dump(1);
+  EXPECT_EQ(lag->at("extra_parameters"), 3) << lag->dump(1);
+}
+
 }  // namespace
 }  // namespace test_diagnose
 }  // namespace friction::testing
