@@ -7,6 +7,7 @@
 
 #include "diagnose_stages.hpp"
 #include "friction/metrics.hpp"
+#include "joint_fit_memo.hpp"
 #include "position_origin.hpp"
 
 namespace friction {
@@ -89,6 +90,7 @@ Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
         measurement_floor_rss(b.state, rho_v, val, record_derivative_windows(val), o.threads) /
         sum_of_squares(val.force);
   }
+  extension_detail::JointFitMemo joint_fits(est);
   const Context c{
       est,
       val,
@@ -107,7 +109,8 @@ Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
           b.state.ext.reference_force),
       noise_floor_rss_sss_percent(val.force, estimate_white_noise_sigma(val.force)),
       dx.validation_measurement_floor_percent,
-      x_ref};
+      x_ref,
+      &joint_fits};
 
   if (o.baseline == "lugre") {
     std::optional<Finding> nonlocal = fit_lugre_baseline(c, b, dx);

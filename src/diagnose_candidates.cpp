@@ -312,7 +312,8 @@ State accepted(const Context& c, const State& s, const Tried& t) {
   o.base_under_level = kDiagnoseBaseUnderLevel;
   o.threads = c.options.threads;  // the forward pass waits for the restart
   bool restarted = false;
-  const ExtendedSlipFit g = extension_detail::restart_base(c.est, t.result, o, restarted);
+  const ExtendedSlipFit g =
+      extension_detail::restart_base(c.est, t.result, o, restarted, false, c.joint_fits);
   if (restarted) {
     take_fit(next, g, extended_validation_percent(g.base, g.ext, c.val));
   }
@@ -549,7 +550,7 @@ void polish_final(const Context& c, Chain& chain) {
   bool restarted = false;
   const ExtendedSlipFit g = extension_detail::restart_base(
       c.est, ExtendedSlipFit{last.base, last.rho, last.ext, last.rss, true, last.at_bound}, o,
-      restarted, true);
+      restarted, true, c.joint_fits);
   if (restarted) take_fit(last, g, extended_validation_percent(g.base, g.ext, c.val));
 }
 

@@ -31,6 +31,10 @@
 #include "friction/extension_fit.hpp"
 #include "friction/methods.hpp"
 
+namespace friction::extension_detail {
+class JointFitMemo;  // joint_fit_memo.hpp
+}  // namespace friction::extension_detail
+
 namespace friction::diagnose_detail {
 
 /// One model of the chain: the Maxwell Slip base, its relative initial deflections, its pieces
@@ -65,6 +69,8 @@ struct Context {
   double validation_measurement_percent = 0;
   /// The position subtracted from both records (position_origin.hpp): 0 when not shifted.
   double position_origin = 0;
+  /// The restarts' joint fits on `est`, remembered for the final polish (joint_fit_memo.hpp).
+  extension_detail::JointFitMemo* joint_fits = nullptr;
 
   /// The validation floor with the displacement's sampling in it: a model validating at or below
   /// it leaves nothing for a piece to explain, so no candidate on it passes rule (c).

@@ -10,6 +10,7 @@
 
 #include "extension_families.hpp"
 #include "extension_steps.hpp"
+#include "joint_fit_memo.hpp"
 #include "friction/diagnose.hpp"
 #include "friction/extension_fit.hpp"
 #include "friction/identification.hpp"
@@ -284,7 +285,8 @@ double fit_bic(const Record& r, const ExtendedSlipFit& f) {
 // says which one that was, and when it points to a value on entry only that NLR runs.
 std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipFit& cur,
                                             const ExtensionFitOptions& o, std::size_t operators,
-                                            std::optional<bool>& under_level) {
+                                            std::optional<bool>& under_level,
+                                            JointFitMemo* memo) {
   const std::optional<bool> only = under_level;
   NlrOptions n;
   n.operators = operators;
@@ -339,6 +341,11 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
   // from that force; another may give one).  Several branches share the threads; one alone gives
   // them to NLR's order selection.
   std::vector<std::optional<ExtendedSlipFit>> fits(branches.size());
+  const auto joint_fit = [&](const MaxwellSlipParameters<double>& base,
+                             const std::vector<double>& rho) {
+    return memo ? memo->fit(r, base, rho, cur.ext, o.max_iterations)
+                : fit_extended_slip(r, base, rho, cur.ext, false, o.max_iterations);
+  };
   NlrOptions under = n;
   under.refine_initial_state = false;  // its search knows only the nominal box
   n.threads = under.threads = branches.size() > 1 ? 1 : o.threads;
@@ -347,9 +354,8 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
     try {
       if (!b.under) {
         const NlrResult nr = identify_maxwell_slip(r.time, x, b.force, n);
-        fits[i] = fit_extended_slip(
-            r, nr.parameters, state_from(nr.report.initial_deflections, nr.parameters.threshold),
-            cur.ext, false, o.max_iterations);
+        fits[i] = joint_fit(nr.parameters,
+                            state_from(nr.report.initial_deflections, nr.parameters.threshold));
       } else {
         const NlrResult nr =
             detail::identify_maxwell_slip_under_limits(r.time, x, b.force, under, limits);
@@ -359,7 +365,7 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
             state_from(nr.report.initial_deflections, nr.parameters.threshold);
         const double a = cur.ext.asymmetry ? cur.ext.asymmetry->asymmetry : 0.0;
         for (double& v : rho) v = std::clamp(v - a, -1.0, 1.0);
-        fits[i] = fit_extended_slip(r, nr.parameters, rho, cur.ext, false, o.max_iterations);
+        fits[i] = joint_fit(nr.parameters, rho);
       }
     } catch (const Error&) {
       // Its slot stays empty.
@@ -383,7 +389,8 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
 // fixed M, the order grows one operator at a time while BIC falls (header comment, 1: Order
 // growth).
 ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
-                             const ExtensionFitOptions& o, bool& restarted, bool keep_order) {
+                             const ExtensionFitOptions& o, bool& restarted, bool keep_order,
+                             JointFitMemo* memo) {
   ExtendedSlipFit best = cur;
   // M may differ (it is selected again on the corrected force): compare by BIC.
   const std::size_t m = keep_order && o.operators == 0 ? cur.base.size() : o.operators;
@@ -391,7 +398,8 @@ ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
   // the restart: both at every step made `identify` 40 % slower on the tribometer.
   std::optional<bool> under_level;
   bool kept = false;
-  if (auto g = fit_from_nlr(r, cur, o, m, under_level); g && fit_bic(r, *g) < fit_bic(r, best)) {
+  if (auto g = fit_from_nlr(r, cur, o, m, under_level, memo);
+      g && fit_bic(r, *g) < fit_bic(r, best)) {
     best = std::move(*g);
     kept = restarted = true;
   }
@@ -403,14 +411,14 @@ ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
   // the discovery study's told-the-effect records at seed 5551212, frictional-lag+viscous-1
   // 1.30 -> 0.69 and frictional-lag+stribeck-1 1.23 -> 0.91 times the floor.
   for (int again = 0; again < 2 && kept; ++again) {
-    auto g = fit_from_nlr(r, best, o, m, under_level);
+    auto g = fit_from_nlr(r, best, o, m, under_level, memo);
     if (!g || !(fit_bic(r, *g) < fit_bic(r, best))) break;
     best = std::move(*g);
   }
   if (o.operators > 0 || !o.grow_operators) return best;
   const std::size_t largest = o.max_operators > 0 ? o.max_operators : o.operator_limit;
   while (best.base.size() < largest) {
-    auto g = fit_from_nlr(r, best, o, best.base.size() + 1, under_level);
+    auto g = fit_from_nlr(r, best, o, best.base.size() + 1, under_level, memo);
     if (!g || g->base.size() <= best.base.size() || !(fit_bic(r, *g) < fit_bic(r, best))) break;
     best = std::move(*g);
     restarted = true;

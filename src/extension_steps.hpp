@@ -15,6 +15,8 @@
 
 namespace friction::extension_detail {
 
+class JointFitMemo;
+
 /// Velocity and acceleration of a record at its sample instants, as simulate_extended gives the
 /// pieces (no delay).
 struct RecordSignals {
@@ -42,10 +44,10 @@ void judge_evidence(ExtensionIdentification& res, const std::vector<Effect>& eff
 /// fit from that base; the fit with the lower BIC is returned (`restarted` says which), then
 /// grown one operator at a time while BIC falls (o.grow_operators, section 1: Order growth).
 /// `keep_order`: the restart's NLR fits the M of `cur` instead of selecting it (growth still
-/// follows).
+/// follows).  `memo`: the joint fits from NLR's bases are made through it (joint_fit_memo.hpp).
 ExtendedSlipFit restart_base(const Record& r, const ExtendedSlipFit& cur,
                              const ExtensionFitOptions& o, bool& restarted,
-                             bool keep_order = false);
+                             bool keep_order = false, JointFitMemo* memo = nullptr);
 
 /// Maxwell Slip base: the base and all pieces refitted jointly, with the restart (section 1).
 void identify_on_maxwell_slip(ExtensionIdentification& res,
