@@ -10,11 +10,11 @@
 
 #include "extension_families.hpp"
 #include "extension_steps.hpp"
-#include "joint_fit_memo.hpp"
 #include "friction/diagnose.hpp"
 #include "friction/extension_fit.hpp"
 #include "friction/identification.hpp"
 #include "friction/nlr.hpp"
+#include "joint_fit_memo.hpp"
 #include "parallel_for.hpp"
 #include "slip_regression.hpp"
 
