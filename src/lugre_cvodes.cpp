@@ -249,18 +249,52 @@ LuGreCvodesResult simulate_lugre_cvodes(const LuGreParameters<double>& parameter
 
   output(0, 0.0, level.empty() ? 1.0 : level[0]);
   CvodesStatistics& stats = result.statistics;
+  auto velocity_of = [&](std::size_t k) {
+    return velocity.empty() ? (x[k] - x[k - 1]) / (time[k] - time[k - 1]) : velocity[k];
+  };
+  auto level_of = [&](std::size_t k) { return level.empty() ? 1.0 : level[k]; };
+  // The right-hand side jumps only where the velocity or the level changes, so the integrator is
+  // re-initialised there and runs through a stretch of equal intervals (a stroke at constant
+  // speed, an encoder's repeated count) in one go, each sample's state interpolated by CVODES.
+  // Velocities from a displacement written in decimal differ in their last bits from sample to
+  // sample of one stroke; a relative difference below a hundredth of the relative tolerance moves
+  // z by less than that, so such intervals count as equal and are integrated at the stretch's
+  // first velocity.
+  const double same_velocity = 1e-2 * options.relative_tolerance;
+  auto continues = [&](std::size_t k, double v, double lev) {
+    return std::abs(velocity_of(k) - v) <= same_velocity * std::abs(v) && level_of(k) == lev;
+  };
+  std::size_t run_end = 0;  // last sample of the stretch being integrated; 0: none
+  bool sensitivity_error_control = options.sensitivity_error_control;
   for (std::size_t k = 1; k < n; ++k) {
-    const double t0 = time[k - 1], t1 = time[k];
-    const double v = velocity.empty() ? (x[k] - x[k - 1]) / (t1 - t0) : velocity[k];
-    const double lev = level.empty() ? 1.0 : level[k];
+    const double v = velocity_of(k);
+    const double lev = level_of(k);
     FRICTION_CHECK(std::isfinite(v), "simulate_lugre_cvodes: velocity of sample ", k,
                    " is not finite");
-    if (v != 0.0) {
-      pr.velocity = v;
-      pr.level = lev;
-      check(CVodeReInit(cv, t0, y.get()), "CVodeReInit", t0, pr);
-      if (sens) check(CVodeSensReInit(cv, CV_STAGGERED, yS.vectors), "CVodeSensReInit", t0, pr);
-      check(CVodeSetStopTime(cv, t1), "CVodeSetStopTime", t0, pr);
+    if (v == 0.0) {
+      run_end = 0;
+    } else {
+      const double t0 = time[k - 1], t1 = time[k];
+      if (k > run_end) {
+        run_end = k;
+        while (run_end + 1 < n && continues(run_end + 1, v, lev)) ++run_end;
+        pr.velocity = v;
+        pr.level = lev;
+        check(CVodeReInit(cv, t0, y.get()), "CVodeReInit", t0, pr);
+        if (sens) check(CVodeSensReInit(cv, CV_STAGGERED, yS.vectors), "CVodeSensReInit", t0, pr);
+        check(CVodeSetStopTime(cv, time[run_end]), "CVodeSetStopTime", t0, pr);
+        ++stats.restarts;
+        // Within one interval the steps chosen for z resolve the sensitivities too (header); across
+        // a stretch the steps grow past the interval as z settles, and the sensitivities must
+        // enter the error test: measured on the strokes bench record (936 stretches for 8,573
+        // moving intervals), the Jacobian's relative error was 3e-3 without and 2.6e-5 with it
+        // (2.2e-4 restarting at every sample).
+        const bool error_control = options.sensitivity_error_control || run_end > k;
+        if (sens && error_control != sensitivity_error_control)
+          check(CVodeSetSensErrCon(cv, error_control ? SUNTRUE : SUNFALSE), "CVodeSetSensErrCon",
+                t0, pr);
+        sensitivity_error_control = error_control;
+      }
       const Counters before = read_counters(cv, sens);
       sunrealtype reached = t0;
       check(CVode(cv, t1, y.get(), &reached, CV_NORMAL), "CVode", reached, pr);
