@@ -100,14 +100,19 @@ bool finite_parameters(const LuGreParameters<double>& p) {
 // The global stage runs thousands of these, most of whose time is each sample's transition (its
 // s(v) and exp(-|v| dt / s), LuGre::Transition).  Two ways to compute fewer:
 //  * On a record whose motions repeat (an encoder's staircase at a fixed rate: data/ as measured
-//    has 757 distinct (velocity, interval) pairs in 10,221 samples, the tribometer 121 in 21,289)
-//    each distinct pair's transition is computed once per parameter set and the samples only
-//    carry the state through it: the same operations on the same numbers as the plain run.
-//  * Otherwise, on a record sampled at one interval (a displacement without a staircase, as the
-//    CLI's conditioned records are), the transitions are tabulated over ln|v| and interpolated
-//    (lugre_transition_table.hpp: relative force error below 1e-5, and a few hundred nodes per
-//    parameter set instead of N transitions).  The local stage and every reported figure use the
-//    exact step.
+//    has 757 distinct (velocity, interval) pairs in 10,221 samples, the tribometer 121 in 21,289;
+//    strokes at constant speeds) each distinct motion's transition is computed once per parameter
+//    set and the samples only carry the state through it.  Motions count as one when their
+//    velocities and intervals agree to a relative 1e-9: velocities from a displacement written in
+//    decimal, or conditioned by the CLI, differ in their last bits from sample to sample of one
+//    stroke (the CLI's strokes bench record: 1,096 distinct pairs to the bit, 568 motions), and
+//    the transition of either differs from the other's by about that 1e-9, four decades below the
+//    table's error.
+//  * Otherwise, on a record sampled at one interval (a displacement without a staircase), the
+//    transitions are tabulated over ln|v| and interpolated (lugre_transition_table.hpp: relative
+//    force error below 1e-5, and a few hundred nodes per parameter set instead of N
+//    transitions).
+// The local stage and every reported figure use the exact step.
 struct Objective {
   std::span<const double> force;
   std::vector<Motion<double>> motions;
@@ -116,24 +121,61 @@ struct Objective {
   mutable std::vector<double> buffer;
   std::vector<Motion<double>> distinct;  // empty: no memo
   std::vector<std::uint32_t> which;      // sample k's entry of `distinct`
-  mutable std::vector<LuGre<double>::Transition> transitions;
+  // A distinct motion's transition as an affine map of the state and a force linear in it:
+  //     z+ = decay z + offset,    F = stiffness z+ + damping (z - z_inf) + viscous_force,
+  // offset = (1 - decay) z_inf and damping = -sigma1 rate decay (LuGre::step's dz/dt).  The
+  // state's chain through the record is then one fused multiply-add per sample instead of a
+  // subtraction, a multiplication and an addition, and the force is computed beside it.
+  struct Carry {
+    double decay, offset, z_inf, damping, viscous_force;
+  };
+  mutable std::vector<Carry> carries;
   std::optional<LuGreTransitionTable> table;
 
   // Chooses how transitions are shared.  Measured (10,000 samples, GCC 12 -O2): a transition
   // costs ~53 ns, carrying the state through a shared one ~3.4 ns, interpolating one from the
-  // table and carrying the state ~11 ns.  So the memo (exact) is kept while its distinct motions
-  // D stay below the table's nodes G plus N/8 (53 D + 3.4 N < 53 G + 11 N); otherwise the table
-  // when the record has one, the memo when it still gains, else every sample steps.
+  // table and carrying the state ~11 ns.  So the memo is kept while its distinct motions D stay
+  // below the table's nodes G plus N/8 (53 D + 3.4 N < 53 G + 11 N); otherwise the table when
+  // the record has one, the memo when it still gains, else every sample steps.
   void index_motions() {
     distinct.clear();
     which.assign(motions.size(), 0);
-    std::map<std::pair<std::uint64_t, std::uint64_t>, std::uint32_t> seen;
-    for (std::size_t k = 0; k < motions.size(); ++k) {
-      const auto key = std::pair(std::bit_cast<std::uint64_t>(motions[k].velocity),
-                                 std::bit_cast<std::uint64_t>(motions[k].dt));
-      const auto [it, added] = seen.emplace(key, static_cast<std::uint32_t>(distinct.size()));
-      if (added) distinct.push_back(motions[k]);
-      which[k] = it->second;
+    // Intervals first, then velocities within each interval, each grouped by sorting and
+    // sweeping: a motion joins the group whose first member it agrees with to kSame.
+    constexpr double kSame = 1e-9;
+    const std::size_t n = motions.size();
+    std::vector<std::uint32_t> order(n);
+    std::iota(order.begin(), order.end(), 0u);
+    std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+      return motions[a].dt < motions[b].dt;
+    });
+    std::vector<std::uint32_t> interval(n);
+    std::vector<double> interval_dt;
+    for (std::uint32_t k : order) {
+      const double dt = motions[k].dt;
+      if (interval_dt.empty() || dt - interval_dt.back() > kSame * interval_dt.back())
+        interval_dt.push_back(dt);
+      interval[k] = static_cast<std::uint32_t>(interval_dt.size() - 1);
+    }
+    std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+      return interval[a] != interval[b] ? interval[a] < interval[b]
+                                        : motions[a].velocity < motions[b].velocity;
+    });
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t k = order[i];
+      const Motion<double>* first = distinct.empty() ? nullptr : &distinct.back();
+      const double v = motions[k].velocity;
+      const bool joins = first && interval[k] == interval[order[i - 1]] &&
+                         (v == first->velocity || (v * first->velocity > 0 &&
+                                                   v - first->velocity <=
+                                                       kSame * std::abs(first->velocity)));
+      if (!joins) {
+        Motion<double> m = motions[k];
+        m.dt = interval_dt[interval[k]];
+        m.dx = m.velocity * m.dt;
+        distinct.push_back(m);
+      }
+      which[k] = static_cast<std::uint32_t>(distinct.size() - 1);
     }
     LuGreTransitionTable t(motions);
     if (t.usable() && t.nodes() + motions.size() / 8 < distinct.size()) {
@@ -146,26 +188,36 @@ struct Objective {
 
   double percent(const LuGreParameters<double>& p, double z0) const {
     if (!finite_parameters(p) || !std::isfinite(z0)) return kHuge;
-    buffer.resize(force.size());
-    if (table) {
-      LuGre<double> model(p);
-      model.reset(z0);
-      table->run(model, buffer.data());
-    } else if (!which.empty()) {
-      LuGre<double> model(p);
-      transitions.resize(distinct.size());
-      for (std::size_t i = 0; i < distinct.size(); ++i)
-        transitions[i] = model.transition(distinct[i]);
-      model.reset(z0);
-      for (std::size_t k = 0; k < motions.size(); ++k)
-        buffer[k] = model.step(transitions[which[k]]);
-    } else {
-      run_exact(p, motions, z0, buffer.data());
-    }
     double rss = 0;
-    for (std::size_t k = 0; k < force.size(); ++k) {
-      const double e = force[k] - buffer[k];
-      rss += e * e;
+    if (!which.empty()) {
+      const LuGre<double> model(p);
+      carries.resize(distinct.size());
+      for (std::size_t i = 0; i < distinct.size(); ++i) {
+        const auto tr = model.transition(distinct[i]);
+        carries[i] = {tr.decay, (1.0 - tr.decay) * tr.z_inf, tr.z_inf,
+                      -p.micro_damping * tr.rate * tr.decay, tr.viscous_force};
+      }
+      double z = z0;
+      for (std::size_t k = 0; k < motions.size(); ++k) {
+        const Carry& c = carries[which[k]];
+        const double excess = z - c.z_inf;
+        z = c.decay * z + c.offset;
+        const double e = force[k] - (p.stiffness * z + c.damping * excess + c.viscous_force);
+        rss += e * e;
+      }
+    } else {
+      buffer.resize(force.size());
+      if (table) {
+        LuGre<double> model(p);
+        model.reset(z0);
+        table->run(model, buffer.data());
+      } else {
+        run_exact(p, motions, z0, buffer.data());
+      }
+      for (std::size_t k = 0; k < force.size(); ++k) {
+        const double e = force[k] - buffer[k];
+        rss += e * e;
+      }
     }
     return std::isfinite(rss) ? 100.0 * rss / sss : kHuge;
   }

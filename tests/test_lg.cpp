@@ -323,35 +323,55 @@ bool has_warning(const std::vector<std::string>& warnings, const std::string& te
                      [&](const std::string& w) { return w.find(text) != std::string::npos; });
 }
 
-// The global stage computes each distinct (velocity, interval) transition once per run on a
-// record whose motions repeat (an encoder at a fixed rate): it must end where stepping every
-// sample ends, bit for bit, on such a record (three speeds, a 0.1 um encoder, time stamps at a
-// binary interval so that the intervals repeat exactly: the memo is in use) and on one with
+// The global stage computes each distinct motion's transition once per run on a record whose
+// motions repeat (an encoder at a fixed rate), and carries the state through it as an affine map.
+// Its objective must agree with stepping every sample exactly to rounding, and the
+// identification must end where stepping every sample ends, to the local stage's tolerance (as
+// in the next test): every parameter within a quarter of its standard error.  Three records:
+// three speeds on a 0.1 um encoder with time stamps at a binary interval (the motions repeat to
+// the bit); the same with decimal time stamps and the axis 0.1 m from the origin, each position
+// a few units in its last place off (the arithmetic of a conditioning filter), whose intervals
+// and velocities differ in their last bits (relative 1e-11) and must still be shared; and
 // irregular sampling, whose motions do not repeat and which gets neither memo nor table.
 TEST(Lg, MemoisedStepsGiveTheSameIdentification) {
   const auto p = truth();
   Record quantised = stroke_record(p, {1e-3, 2.5e-3, 5e-3}, 1e-3, 1e-7, kSigma, 31);
+  std::mt19937 gen(32);
+  Record decimal = quantised;
+  std::uniform_int_distribution<int> ulps(-3, 3);
+  for (double& x : decimal.x) {
+    x += 0.1;
+    for (int u = ulps(gen); u != 0; u -= u > 0 ? 1 : -1)
+      x = std::nextafter(x, u > 0 ? 1.0 : -1.0);
+  }
   for (std::size_t k = 0; k < quantised.time.size(); ++k)
     quantised.time[k] = static_cast<double>(k) / 1024.0;
   Record irregular = quantised;
-  std::mt19937 gen(32);
   std::uniform_real_distribution<double> jitter(-2e-4, 2e-4);
   for (std::size_t k = 1; k < irregular.time.size(); ++k)
     irregular.time[k] = static_cast<double>(k) * 1e-3 + jitter(gen);
-  for (const Record* r : {&quantised, &irregular}) {
+  for (const Record* r : {&quantised, &decimal, &irregular}) {
     LgOptions o;
     o.global_evaluations = 400;
     o.polish_evaluations = 400;
-    o.max_iterations = 3;  // the local stage starts where the global one ended: kept short
-    o.covariance = false;
     const LgResult memo = identify_lugre(r->time, r->x, r->force, o);
-    EXPECT_EQ(memo.timings.global_transitions, r == &quantised ? "shared" : "exact");
+    EXPECT_EQ(memo.timings.global_transitions, r == &irregular ? "exact" : "shared");
     o.memoise_steps = false;
     const LgResult plain = identify_lugre(r->time, r->x, r->force, o);
-    const auto a = memo.parameters.to_array(), b = plain.parameters.to_array();
-    for (std::size_t j = 0; j < a.size(); ++j) EXPECT_EQ(a[j], b[j]) << j;
-    EXPECT_EQ(memo.report.estimation.rss, plain.report.estimation.rss);
-    EXPECT_EQ(memo.report.starts.size(), plain.report.starts.size());
+    // The first logged start is the data-driven point, evaluated by either objective.
+    ASSERT_FALSE(memo.report.starts.empty());
+    ASSERT_FALSE(plain.report.starts.empty());
+    EXPECT_NEAR(memo.report.starts[0].start_percent, plain.report.starts[0].start_percent,
+                1e-9 * plain.report.starts[0].start_percent);
+    ASSERT_EQ(plain.report.parameters.size(), 7u);
+    for (std::size_t j = 0; j < 7; ++j) {
+      const auto& a = memo.report.parameters[j];
+      const auto& b = plain.report.parameters[j];
+      ASSERT_GT(b.standard_error, 0.0) << b.name;
+      EXPECT_LE(std::abs(a.value - b.value), 0.25 * b.standard_error) << b.name;
+    }
+    EXPECT_NEAR(memo.report.estimation.rss, plain.report.estimation.rss,
+                0.02 / static_cast<double>(r->x.size()) * plain.report.estimation.rss);
   }
 }
 
