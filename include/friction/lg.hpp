@@ -154,11 +154,12 @@ struct LgOptions {
   /// CVODES settings for the Jacobian (sensitivities and log_parameters are forced on).
   CvodesOptions cvodes = lg_default_cvodes();
   bool covariance = true;  ///< standard errors and correlations
-  /// The global stage computes each distinct (velocity, interval) pair's exact-step transition
-  /// once per run instead of once per sample (LuGre::Transition; the same numbers), or, when the
-  /// motions do not repeat on a record sampled at one interval, interpolates them from a table
-  /// over the speed (lugre_transition_table.hpp; the local stage and every reported figure use the
-  /// exact step).  false steps every sample exactly, for checking.
+  /// The global stage computes each distinct motion's exact-step transition (velocity and
+  /// interval equal to a relative 1e-9) once per run instead of once per sample (LuGre::Transition,
+  /// carried as an affine map: the same numbers to rounding), or, when the motions do not repeat
+  /// on a record sampled at one interval, interpolates them from a table over the speed
+  /// (lugre_transition_table.hpp; the local stage and every reported figure use the exact step).
+  /// false steps every sample exactly, for checking.
   bool memoise_steps = true;
 };
 
