@@ -7,12 +7,10 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
-#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <map>
 #include <numeric>
 #include <optional>
 #include <random>
@@ -124,8 +122,8 @@ struct Objective {
   // A distinct motion's transition as an affine map of the state and a force linear in it:
   //     z+ = decay z + offset,    F = stiffness z+ + damping (z - z_inf) + viscous_force,
   // offset = (1 - decay) z_inf and damping = -sigma1 rate decay (LuGre::step's dz/dt).  The
-  // state's chain through the record is then one fused multiply-add per sample instead of a
-  // subtraction, a multiplication and an addition, and the force is computed beside it.
+  // state's chain through the record is then one multiplication and one addition per sample
+  // instead of a subtraction besides, and the force is computed beside it.
   struct Carry {
     double decay, offset, z_inf, damping, viscous_force;
   };
