@@ -128,6 +128,12 @@ struct Objective {
     double decay, offset, z_inf, damping, viscous_force;
   };
   mutable std::vector<Carry> carries;
+  // Runs of one motion (a stroke at constant speed, a rest): sample k's run ends at run_end[k],
+  // and the run's forces, less the run's mean, are summed up to each sample (centred, so the
+  // difference of two sums keeps its digits).  Once the state stops changing inside a run, every
+  // later sample of the run has the same force, and their squared errors follow from the sums.
+  std::vector<std::uint32_t> run_end;
+  std::vector<double> run_mean, run_sum, run_square_sum;
   std::optional<LuGreTransitionTable> table;
 
   // Chooses how transitions are shared.  Measured (10,000 samples, GCC 12 -O2): a transition
@@ -182,6 +188,24 @@ struct Objective {
     } else if (4 * distinct.size() > 3 * motions.size()) {
       distinct.clear(), which.clear();
     }
+    if (which.empty()) return;
+    run_end.assign(n, 0);
+    run_mean.assign(n, 0.0), run_sum.assign(n, 0.0), run_square_sum.assign(n, 0.0);
+    for (std::size_t first = 0; first < n;) {
+      std::size_t last = first;
+      while (last + 1 < n && which[last + 1] == which[first]) ++last;
+      double mean = 0;
+      for (std::size_t k = first; k <= last; ++k) mean += force[k];
+      mean /= static_cast<double>(last - first + 1);
+      double s1 = 0, s2 = 0;
+      for (std::size_t k = first; k <= last; ++k) {
+        s1 += force[k] - mean;
+        s2 += (force[k] - mean) * (force[k] - mean);
+        run_end[k] = static_cast<std::uint32_t>(last);
+        run_mean[k] = mean, run_sum[k] = s1, run_square_sum[k] = s2;
+      }
+      first = last + 1;
+    }
   }
 
   double percent(const LuGreParameters<double>& p, double z0) const {
@@ -199,9 +223,21 @@ struct Objective {
       for (std::size_t k = 0; k < motions.size(); ++k) {
         const Carry& c = carries[which[k]];
         const double excess = z - c.z_inf;
+        const double before = z;
         z = c.decay * z + c.offset;
-        const double e = force[k] - (p.stiffness * z + c.damping * excess + c.viscous_force);
+        const double f = p.stiffness * z + c.damping * excess + c.viscous_force;
+        const double e = force[k] - f;
         rss += e * e;
+        const std::size_t last = run_end[k];
+        if (z == before && last > k) {
+          // The state is a fixed point of this run's map: samples k+1..last repeat force f.
+          const double d = f - run_mean[k];
+          const double m = static_cast<double>(last - k);
+          const double s1 = run_sum[last] - run_sum[k];
+          const double s2 = run_square_sum[last] - run_square_sum[k];
+          rss += std::max(0.0, s2 - 2.0 * d * s1 + m * d * d);
+          k = last;
+        }
       }
     } else {
       buffer.resize(force.size());
