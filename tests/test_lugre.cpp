@@ -65,6 +65,39 @@ std::vector<double> exact(const LuGreParameters<double>& p, const std::vector<do
   return force;
 }
 
+// A sensitivity column against the central difference (fp - fm) / 2h of the exact step: the
+// norms of their difference and of the difference quotient.
+struct ColumnCheck {
+  double difference = 0, reference = 0;
+};
+template <typename Column>
+ColumnCheck against_central_difference(const std::vector<double>& fp,
+                                       const std::vector<double>& fm, double h, Column column) {
+  double num = 0, den = 0;
+  for (std::size_t k = 0; k < fp.size(); ++k) {
+    const double fd = (fp[k] - fm[k]) / (2 * h);
+    num += (column(k) - fd) * (column(k) - fd);
+    den += fd * fd;
+  }
+  return {std::sqrt(num), std::sqrt(den)};
+}
+
+// Column j of an N x 7 row-major Jacobian dF/dtheta against central differences of the exact
+// step in theta_j (step 1e-5 theta_j).
+ColumnCheck parameter_column_check(const LuGreParameters<double>& p,
+                                   const std::vector<double>& time, const std::vector<double>& x,
+                                   double z0, const std::vector<double>& jacobian, std::size_t j) {
+  const auto theta = p.to_array();
+  const double h = 1e-5 * theta[j];
+  auto plus = theta, minus = theta;
+  plus[j] += h;
+  minus[j] -= h;
+  return against_central_difference(
+      exact(LuGreParameters<double>::from_array(plus, p.shape), time, x, z0),
+      exact(LuGreParameters<double>::from_array(minus, p.shape), time, x, z0), h,
+      [&](std::size_t k) { return jacobian[7 * k + j]; });
+}
+
 // Steady state written out independently of the library's helpers.
 double expected_steady_force(const LuGreParameters<double>& p, double v) {
   const double r = std::abs(v) / p.stribeck_velocity;
@@ -265,36 +298,22 @@ TEST(LuGreCvodes, SensitivitiesMatchFiniteDifferencesOfTheExactStep) {
   ASSERT_EQ(r.jacobian.size(), 7 * x.size());
   ASSERT_EQ(r.initial_state_derivative.size(), x.size());
 
-  auto compare = [&](const std::vector<double>& fp, const std::vector<double>& fm, double h,
-                     auto column, const std::string& what) {
-    double num = 0, den = 0;
-    for (std::size_t k = 0; k < x.size(); ++k) {
-      const double fd = (fp[k] - fm[k]) / (2 * h);
-      num += (column(k) - fd) * (column(k) - fd);
-      den += fd * fd;
-    }
-    EXPECT_GT(den, 0.0) << what;
+  auto compare = [&](const ColumnCheck& c, const std::string& what) {
+    EXPECT_GT(c.reference, 0.0) << what;
     // Integration error at rtol 1e-8 and the O(h^2) finite difference: 1e-4 relative is 100x
     // above what was seen and far below the effect of a wrong term (order 1).
-    EXPECT_LE(std::sqrt(num), 1e-4 * std::sqrt(den)) << what;
+    EXPECT_LE(c.difference, 1e-4 * c.reference) << what;
   };
-  const auto theta = p.to_array();
-  for (std::size_t j = 0; j < 7; ++j) {
-    const double h = 1e-5 * theta[j];
-    auto plus = theta, minus = theta;
-    plus[j] += h;
-    minus[j] -= h;
-    compare(
-        exact(LuGreParameters<double>::from_array(plus, p.shape), time, x, z0),
-        exact(LuGreParameters<double>::from_array(minus, p.shape), time, x, z0), h,
-        [&](std::size_t k) { return r.jacobian[7 * k + j]; }, friction::kLuGreParameterNames[j]);
-  }
+  for (std::size_t j = 0; j < 7; ++j)
+    compare(parameter_column_check(p, time, x, z0, r.jacobian, j),
+            friction::kLuGreParameterNames[j]);
   const double h = 1e-8;
-  compare(
-      exact(p, time, x, z0 + h), exact(p, time, x, z0 - h), h,
-      [&](std::size_t k) { return r.initial_state_derivative[k]; }, "z0");
+  compare(against_central_difference(exact(p, time, x, z0 + h), exact(p, time, x, z0 - h), h,
+                                     [&](std::size_t k) { return r.initial_state_derivative[k]; }),
+          "z0");
 
   // Log parametrisation: column j scaled by theta_j.
+  const auto theta = p.to_array();
   o.log_parameters = true;
   const auto rl = friction::simulate_lugre_cvodes(p, time, x, o, z0);
   for (std::size_t k = 0; k < x.size(); k += 97)
@@ -346,24 +365,12 @@ TEST(LuGreCvodes, IntegratesAStrokeAtConstantSpeedInOneGo) {
   EXPECT_LT(z_err, 1e-4 * z_scale);
   EXPECT_LT(f_err, 1e-3);
 
-  const auto theta = p.to_array();
   for (std::size_t j = 0; j < 7; ++j) {
-    const double h = 1e-5 * theta[j];
-    auto plus = theta, minus = theta;
-    plus[j] += h;
-    minus[j] -= h;
-    const auto fp = exact(LuGreParameters<double>::from_array(plus, p.shape), time, x, z0);
-    const auto fm = exact(LuGreParameters<double>::from_array(minus, p.shape), time, x, z0);
-    double num = 0, den = 0;
-    for (std::size_t k = 0; k < x.size(); ++k) {
-      const double fd = (fp[k] - fm[k]) / (2 * h);
-      num += (r.jacobian[7 * k + j] - fd) * (r.jacobian[7 * k + j] - fd);
-      den += fd * fd;
-    }
+    const ColumnCheck c = parameter_column_check(p, time, x, z0, r.jacobian, j);
     // Measured: at most 2.2e-6 relative (sigma0) with the sensitivities in the error test across
     // a stretch, 4.9e-5 without it (and 2.7e-5 restarting at every sample): a sensitivity left
     // out of the error test over a stretch fails here, as would a wrong term (order 1).
-    EXPECT_LE(std::sqrt(num), 1e-5 * std::sqrt(den)) << friction::kLuGreParameterNames[j];
+    EXPECT_LE(c.difference, 1e-5 * c.reference) << friction::kLuGreParameterNames[j];
   }
 }
 
