@@ -178,6 +178,44 @@ TEST(Lg, InitialStateIsRecoveredForAFixedModel) {
   EXPECT_LT(run.errors.rss_sss_percent, 1.1 * percent_of(r.noise, r.force));
 }
 
+// The initial state is the least-squares minimum of the free run's error, clamped to
+// |z0| <= 1.5 max(Fc, Fs) / sigma0: checked against the error of the model's own simulation at
+// neighbouring states, for parameters that do not fit the record (so the minimum is not the
+// generating state) and for a record whose first forces push the minimum beyond the bound.
+TEST(Lg, InitialStateIsTheBoundedMinimumOfTheFreeRunError) {
+  const auto truth_p = truth();
+  Record r = lugre_record(2000, truth_p, 0.5 * 1.5 / 1e5, kSigma, 5);
+  LuGreParameters<double> p = truth_p;
+  p.stiffness *= 0.6;
+  p.coulomb *= 1.1;
+  p.micro_damping *= 2.0;
+  const double bound = 1.5 * std::max(p.coulomb, p.static_force) / p.stiffness;
+  auto rss = [&](double z0) {
+    LuGre<double> model(p);
+    model.reset(z0);
+    const auto f = simulate(model, std::span<const double>(r.time), std::span<const double>(r.x));
+    double s = 0;
+    for (std::size_t k = 0; k < f.size(); ++k) s += (r.force[k] - f[k]) * (r.force[k] - f[k]);
+    return s;
+  };
+  // The vertex of the parabola through three states (exact: the error is quadratic in z0).
+  auto vertex = [&](double z, double h) {
+    const double a = rss(z - h), b = rss(z), c = rss(z + h);
+    return z + 0.5 * h * (a - c) / (a - 2.0 * b + c);
+  };
+  const double z = estimate_lugre_initial_state(p, r.time, r.x, r.force);
+  EXPECT_LT(std::abs(z), bound);
+  EXPECT_NEAR(vertex(z, 0.1 * bound), z, 1e-6 * bound);
+  for (double h : {1e-4 * bound, 1e-2 * bound}) {
+    EXPECT_LE(rss(z), rss(z - h));
+    EXPECT_LE(rss(z), rss(z + h));
+  }
+  // Forces of 5 Fs over the first 20 samples put the unbounded minimum beyond +bound.
+  for (std::size_t k = 0; k < 20; ++k) r.force[k] += 5.0 * p.static_force;
+  ASSERT_GT(vertex(0.0, 0.1 * bound), bound);
+  EXPECT_DOUBLE_EQ(estimate_lugre_initial_state(p, r.time, r.x, r.force), bound);
+}
+
 // (b) Round trip.
 struct RoundTrip {
   Record record;

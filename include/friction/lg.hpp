@@ -216,10 +216,10 @@ LgStart lugre_start(std::span<const double> time, std::span<const double> x,
 LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
                         std::span<const double> force, const LgOptions& options = {});
 
-/// z0 [m] minimising the free-run RSS of the model (exact step) against `force`: a scan of 41
-/// states over [-1.5, 1.5] max(Fc, Fs) / sigma0, then Gauss-Newton on the best (derivative by
-/// autodiff), each step accepted only when the cost falls.  For validation records: nothing but
-/// the initial state is estimated.
+/// z0 [m] minimising the free-run RSS of the model (exact step) against `force` over
+/// [-1.5, 1.5] max(Fc, Fs) / sigma0.  The simulated force is affine in z0, so this is a linear
+/// least-squares problem, solved in closed form from one run that carries d Fhat / d z0.  For
+/// validation records: nothing but the initial state is estimated.
 double estimate_lugre_initial_state(const LuGreParameters<double>& parameters,
                                     std::span<const double> time, std::span<const double> x,
                                     std::span<const double> force);
