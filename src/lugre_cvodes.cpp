@@ -182,6 +182,11 @@ LuGreCvodesResult simulate_lugre_cvodes(const LuGreParameters<double>& parameter
 
   std::unique_ptr<_generic_N_Vector, VectorDeleter> y(N_VNew_Serial(1, ctx.get()));
   if (!y) throw NumericalError("N_VNew_Serial failed");
+  // Fused vector operations: CVODES then updates the six sensitivities with one call per
+  // operation instead of one per vector (every vector here has one entry, so the calls are the
+  // cost).  Measured on the strokes bench record: the check at LG's optimum 2-3 ms faster, the
+  // Jacobian the same to the bit.
+  N_VEnableFusedOps_Serial(y.get(), SUNTRUE);
   double* z = N_VGetArrayPointer(y.get());
   z[0] = z0;
 
