@@ -119,28 +119,34 @@ struct Objective {
   mutable std::vector<double> buffer;
   std::vector<Motion<double>> distinct;  // empty: no memo
   std::vector<std::uint32_t> which;      // sample k's entry of `distinct`
-  // A distinct motion's transition as an affine map of the state and a force linear in it:
-  //     z+ = decay z + offset,    F = stiffness z+ + damping (z - z_inf) + viscous_force,
-  // offset = (1 - decay) z_inf and damping = -sigma1 rate decay (LuGre::step's dz/dt).  The
-  // state's chain through the record is then one multiplication and one addition per sample
-  // instead of a subtraction besides, and the force is computed beside it.
+  // What a parameter set needs of each distinct motion, kept apart so that one pass computes
+  // every transition: |v|, ln|v| (0 at rest), the slip level (level times 1 + a sgn v), sgn v,
+  // v and dt.
+  std::vector<double> speed, log_speed, slip_level, direction, velocity, duration;
+  // A distinct motion's transition in terms of the state's excess y = z - z_inf over its steady
+  // deflection: over one interval y+ = decay y, and the force at its end (eq. 2, with dz/dt of
+  // eq. 1 at the end) is F = level_force + excess_force y, with
+  //     level_force = sigma0 z_inf + sigma2 v,   excess_force = decay (sigma0 - sigma1 rate).
+  // The state's chain through a run of one motion is then one multiplication per sample.
   struct Carry {
-    double decay, offset, z_inf, damping, viscous_force;
+    double decay, z_inf, level_force, excess_force;
   };
   mutable std::vector<Carry> carries;
-  // Runs of one motion (a stroke at constant speed, a rest): sample k's run ends at run_end[k],
-  // and the run's forces, less the run's mean, are summed up to each sample (centred, so the
-  // difference of two sums keeps its digits).  Once the state stops changing inside a run, every
-  // later sample of the run has the same force, and their squared errors follow from the sums.
-  std::vector<std::uint32_t> run_end;
+  // Runs of one motion (a stroke at constant speed, a rest): run r covers samples
+  // run_first[r]..run_first[r + 1] - 1 with motion run_motion[r].  The run's forces, less the
+  // run's mean, are summed up to each sample (centred, so the difference of two sums keeps its
+  // digits).  Once the state stops changing inside a run, every later sample of the run has the
+  // same force, and their squared errors follow from the sums.
+  std::vector<std::uint32_t> run_first, run_motion;
   std::vector<double> run_mean, run_sum, run_square_sum;
   std::optional<LuGreTransitionTable> table;
 
-  // Chooses how transitions are shared.  Measured (10,000 samples, GCC 12 -O2): a transition
-  // costs ~53 ns, carrying the state through a shared one ~3.4 ns, interpolating one from the
-  // table and carrying the state ~11 ns.  So the memo is kept while its distinct motions D stay
-  // below the table's nodes G plus N/8 (53 D + 3.4 N < 53 G + 11 N); otherwise the table when
-  // the record has one, the memo when it still gains, else every sample steps.
+  // Chooses how transitions are shared.  Measured (10,000 samples, GCC 12 -O2, one core): in the
+  // memo's pass a transition costs ~15 ns and carrying the state ~1.4 ns a sample; the table's
+  // nodes ~30 ns each (LuGre::transition) and interpolating and carrying ~5 ns a sample.  So the
+  // table is taken when it has G nodes with 30 G + 5 N < 15 D + 1.4 N, that is when the distinct
+  // motions D exceed 2 G + N / 4; otherwise the memo, which is cheaper than stepping every
+  // sample (~30 ns) at any D.
   void index_motions() {
     distinct.clear();
     which.assign(motions.size(), 0);
@@ -182,18 +188,30 @@ struct Objective {
       which[k] = static_cast<std::uint32_t>(distinct.size() - 1);
     }
     LuGreTransitionTable t(motions);
-    if (t.usable() && t.nodes() + motions.size() / 8 < distinct.size()) {
+    if (t.usable() && 2 * t.nodes() + motions.size() / 4 < distinct.size()) {
       table = std::move(t);
       distinct.clear(), which.clear();
-    } else if (4 * distinct.size() > 3 * motions.size()) {
-      distinct.clear(), which.clear();
     }
+    for (std::vector<double>* v : {&speed, &log_speed, &slip_level, &direction, &velocity,
+                                   &duration, &run_mean, &run_sum, &run_square_sum})
+      v->clear();
+    run_first.clear(), run_motion.clear();
     if (which.empty()) return;
-    run_end.assign(n, 0);
+    for (const Motion<double>& m : distinct) {
+      const double dir = sign_of(m.velocity);
+      speed.push_back(dir * m.velocity);
+      log_speed.push_back(dir != 0.0 ? std::log(dir * m.velocity) : 0.0);
+      slip_level.push_back(m.level * (1.0 + dir * m.asymmetry));
+      direction.push_back(dir);
+      velocity.push_back(m.velocity);
+      duration.push_back(m.dt);
+    }
     run_mean.assign(n, 0.0), run_sum.assign(n, 0.0), run_square_sum.assign(n, 0.0);
     for (std::size_t first = 0; first < n;) {
       std::size_t last = first;
       while (last + 1 < n && which[last + 1] == which[first]) ++last;
+      run_first.push_back(static_cast<std::uint32_t>(first));
+      run_motion.push_back(which[first]);
       double mean = 0;
       for (std::size_t k = first; k <= last; ++k) mean += force[k];
       mean /= static_cast<double>(last - first + 1);
@@ -201,42 +219,60 @@ struct Objective {
       for (std::size_t k = first; k <= last; ++k) {
         s1 += force[k] - mean;
         s2 += (force[k] - mean) * (force[k] - mean);
-        run_end[k] = static_cast<std::uint32_t>(last);
         run_mean[k] = mean, run_sum[k] = s1, run_square_sum[k] = s2;
       }
       first = last + 1;
     }
+    run_first.push_back(static_cast<std::uint32_t>(n));
   }
 
   double percent(const LuGreParameters<double>& p, double z0) const {
     if (!finite_parameters(p) || !std::isfinite(z0)) return kHuge;
     double rss = 0;
     if (!which.empty()) {
-      const LuGre<double> model(p);
+      // Every distinct motion's transition in one pass (LuGre::transition's arithmetic, with
+      // ln|v| kept from the indexing): (|v| / vs)^mu, the Stribeck weight (eq. 3), s(v), the
+      // rate |v| / s(v) and the decay over the interval.
+      const double log_vs = std::log(p.stribeck_velocity);
+      const double dip = p.static_force - p.coulomb;
+      const bool rational = p.shape == StribeckShape::Rational;
       carries.resize(distinct.size());
       for (std::size_t i = 0; i < distinct.size(); ++i) {
-        const auto tr = model.transition(distinct[i]);
-        carries[i] = {tr.decay, (1.0 - tr.decay) * tr.z_inf, tr.z_inf,
-                      -p.micro_damping * tr.rate * tr.decay, tr.viscous_force};
+        double z_inf = 0.0, rate = 0.0, decay = 1.0;  // at rest
+        if (speed[i] != 0.0) {
+          const double ratio_pow = std::exp(p.stribeck_exponent * (log_speed[i] - log_vs));
+          const double weight = rational ? 1.0 / (1.0 + ratio_pow) : std::exp(-ratio_pow);
+          const double s = slip_level[i] * (p.coulomb + dip * weight) / p.stiffness;
+          rate = speed[i] / s;
+          decay = std::exp(-rate * duration[i]);
+          z_inf = direction[i] * s;
+        }
+        carries[i] = {decay, z_inf, p.stiffness * z_inf + p.viscous * velocity[i],
+                      decay * (p.stiffness - p.micro_damping * rate)};
       }
       double z = z0;
-      for (std::size_t k = 0; k < motions.size(); ++k) {
-        const Carry& c = carries[which[k]];
-        const double excess = z - c.z_inf;
-        const double before = z;
-        z = c.decay * z + c.offset;
-        const double f = p.stiffness * z + c.damping * excess + c.viscous_force;
-        const double e = force[k] - f;
-        rss += e * e;
-        const std::size_t last = run_end[k];
-        if (z == before && last > k) {
-          // The state is a fixed point of this run's map: samples k+1..last repeat force f.
-          const double d = f - run_mean[k];
-          const double m = static_cast<double>(last - k);
-          const double s1 = run_sum[last] - run_sum[k];
-          const double s2 = run_square_sum[last] - run_square_sum[k];
-          rss += std::max(0.0, s2 - 2.0 * d * s1 + m * d * d);
-          k = last;
+      for (std::size_t r = 0; r + 1 < run_first.size(); ++r) {
+        const Carry c = carries[run_motion[r]];
+        const std::size_t last = run_first[r + 1] - 1;
+        double y = z - c.z_inf;
+        for (std::size_t k = run_first[r]; k <= last; ++k) {
+          const double f = c.level_force + c.excess_force * y;
+          const double e = force[k] - f;
+          rss += e * e;
+          y *= c.decay;
+          const double next = c.z_inf + y;
+          if (next == z && k < last) {
+            // The state no longer changes in its last bit: samples k+1..last repeat force f (to
+            // the force's rounding: what is left of the excess is below half a unit of z's last
+            // place).
+            const double d = f - run_mean[k];
+            const double m = static_cast<double>(last - k);
+            const double s1 = run_sum[last] - run_sum[k];
+            const double s2 = run_square_sum[last] - run_square_sum[k];
+            rss += std::max(0.0, s2 - 2.0 * d * s1 + m * d * d);
+            break;
+          }
+          z = next;
         }
       }
     } else {

@@ -156,10 +156,10 @@ struct LgOptions {
   bool covariance = true;  ///< standard errors and correlations
   /// The global stage computes each distinct motion's exact-step transition (velocity and
   /// interval equal to a relative 1e-9) once per run instead of once per sample (LuGre::Transition,
-  /// carried as an affine map: the same numbers to rounding), or, when the motions do not repeat
-  /// on a record sampled at one interval, interpolates them from a table over the speed
-  /// (lugre_transition_table.hpp; the local stage and every reported figure use the exact step).
-  /// false steps every sample exactly, for checking.
+  /// carried as the decay of the state's excess over its steady deflection: the same numbers to
+  /// rounding), or, when few motions repeat on a record sampled at one interval, interpolates them
+  /// from a table over the speed (lugre_transition_table.hpp; the local stage and every reported
+  /// figure use the exact step).  false steps every sample exactly, for checking.
   bool memoise_steps = true;
 };
 
