@@ -152,7 +152,7 @@ struct Objective {
     which.assign(motions.size(), 0);
     // Intervals first, then velocities within each interval, each grouped by sorting and
     // sweeping: a motion joins the group whose first member it agrees with to kSame.
-    constexpr double kSame = 1e-9;
+    constexpr double kSame = LuGreTransitionTable::kSameToRounding;
     const std::size_t n = motions.size();
     std::vector<std::uint32_t> order(n);
     std::iota(order.begin(), order.end(), 0u);

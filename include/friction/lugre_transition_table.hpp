@@ -49,6 +49,10 @@ class LuGreTransitionTable {
  public:
   /// Node spacing in ln|v| (see the header comment for the error it gives).
   static constexpr double kSpacing = 1.0 / 32.0;
+  /// Intervals (and, in LG's shared transitions, velocities) that agree to this relative
+  /// difference count as one: time stamps and displacements written as decimals differ in their
+  /// last bits from sample to sample.
+  static constexpr double kSameToRounding = 1e-9;
 
   /// Indexes the motions of a record (motion.hpp: sample 0 has dt = 0; the others the interval
   /// before them).  The level and asymmetry of every motion must be nominal (1, 0): the table is
@@ -71,7 +75,7 @@ class LuGreTransitionTable {
     if (!(dt_ > 0)) return;
     // One interval to rounding: time stamps written as decimals differ in their last bits.
     for (std::size_t k = 1; k < n; ++k)
-      if (std::abs(motions[k].dt - dt_) > 1e-9 * dt_) return;
+      if (std::abs(motions[k].dt - dt_) > kSameToRounding * dt_) return;
     u0_ = std::log(vmin) - kSpacing;
     const std::size_t nodes =
         static_cast<std::size_t>(std::ceil((std::log(vmax) - u0_) / kSpacing)) + 3;
