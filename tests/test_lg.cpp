@@ -406,8 +406,16 @@ TEST(Lg, MemoisedStepsGiveTheSameIdentification) {
   std::uniform_real_distribution<double> jitter(-2e-4, 2e-4);
   for (std::size_t k = 1; k < irregular.time.size(); ++k)
     irregular.time[k] = static_cast<double>(k) * 1e-3 + jitter(gen);
-  for (const Record* r : {&quantised, &decimal, &irregular}) {
+  // The quantised record once more with the exponential Stribeck curve, which the shared
+  // transitions compute by their own arithmetic.
+  const std::array<std::pair<const Record*, StribeckShape>, 4> cases{
+      {{&quantised, StribeckShape::Rational},
+       {&decimal, StribeckShape::Rational},
+       {&irregular, StribeckShape::Rational},
+       {&quantised, StribeckShape::Exponential}}};
+  for (const auto& [r, shape] : cases) {
     LgOptions o;
+    o.shape = shape;
     o.global_evaluations = 400;
     o.polish_evaluations = 400;
     const LgResult memo = identify_lugre(r->time, r->x, r->force, o);
