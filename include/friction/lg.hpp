@@ -58,9 +58,10 @@
 //    the box of (log theta, u); the box is derived from the start (sigma0 x/÷ 10, sigma1 1e-3..30x,
 //    sigma2 from 1e-4 Fc / vmax to max(3 sigma2, Fc / vmax), Fc and Fs x/÷ 3, vs from a tenth of
 //    the slowest to ten times the fastest sliding speed, mu in [0.3, 6]).  Its objective is the
-//    free-run RSS/SSS % with the exact step (`LuGre<double>`; a few hundred microseconds per
-//    evaluation for 10,000 samples), its transitions shared between samples whose motions repeat
-//    or, when none do, interpolated over the speed (`LgOptions::memoise_steps`).  The data-driven
+//    free-run RSS/SSS % with the exact step (`LuGre<double>`), its transitions shared between
+//    samples whose motions repeat or, when few do, interpolated over the speed
+//    (`LgOptions::memoise_steps`): 20-70 microseconds per evaluation for 10,000 samples, a few
+//    hundred stepping every sample.  The data-driven
 //    start and the CRS2 optimum are each polished by NLopt's BOBYQA (derivative-free,
 //    deterministic, same objective, 1500 evaluations); both are logged in `report.starts`, with
 //    `distinct` set when a minimum differs by more than one percent from every earlier one.  The
