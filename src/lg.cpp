@@ -182,7 +182,6 @@ struct Objective {
       if (!joins) {
         Motion<double> m = motions[k];
         m.dt = interval_dt[interval[k]];
-        m.dx = m.velocity * m.dt;
         distinct.push_back(m);
       }
       which[k] = static_cast<std::uint32_t>(distinct.size() - 1);
@@ -233,17 +232,15 @@ struct Objective {
     double rss = 0;
     if (!which.empty()) {
       // Every distinct motion's transition in one pass (LuGre::transition's arithmetic, with
-      // ln|v| kept from the indexing): (|v| / vs)^mu, the Stribeck weight (eq. 3), s(v), the
-      // rate |v| / s(v) and the decay over the interval.
+      // ln|v| kept from the indexing): the Stribeck weight (eq. 3), s(v), the rate |v| / s(v)
+      // and the decay over the interval.
       const double log_vs = std::log(p.stribeck_velocity);
       const double dip = p.static_force - p.coulomb;
-      const bool rational = p.shape == StribeckShape::Rational;
       carries.resize(speed.size());
       for (std::size_t i = 0; i < speed.size(); ++i) {
         double z_inf = 0.0, rate = 0.0, decay = 1.0;  // at rest
         if (speed[i] != 0.0) {
-          const double ratio_pow = std::exp(p.stribeck_exponent * (log_speed[i] - log_vs));
-          const double weight = rational ? 1.0 / (1.0 + ratio_pow) : std::exp(-ratio_pow);
+          const double weight = stribeck_weight_of_log_ratio(p, log_speed[i] - log_vs);
           const double s = slip_level[i] * (p.coulomb + dip * weight) / p.stiffness;
           rate = speed[i] / s;
           decay = std::exp(-rate * duration[i]);

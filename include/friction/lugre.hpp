@@ -118,16 +118,24 @@ inline constexpr std::array<const char*, 7> kLuGreParameterNames{
     "stiffness",    "micro_damping",     "viscous",          "coulomb",
     "static_force", "stribeck_velocity", "stribeck_exponent"};
 
+/// Stribeck weight w in (0, 1) of a moving sample from ln(|v| / vs): the shape's formula applied
+/// to (|v| / vs)^mu = exp(mu ln(|v| / vs)).  LG's global stage keeps ln|v| per distinct motion and
+/// calls this directly.
+template <typename T>
+T stribeck_weight_of_log_ratio(const LuGreParameters<T>& p, const T& log_ratio) {
+  using std::exp;
+  const T ratio_pow = exp(p.stribeck_exponent * log_ratio);
+  if (p.shape == StribeckShape::Exponential) return exp(-ratio_pow);
+  return T(1) / (T(1) + ratio_pow);
+}
+
 /// Stribeck weight w(v) in (0, 1], exactly 1 at v = 0 with zero derivatives there.
 template <typename T>
 T stribeck_weight(const LuGreParameters<T>& p, const T& v) {
-  using std::exp;
   using std::log;
   const T speed = T(sign_of(v)) * v;
   if (value_of(speed) == 0.0) return T(1);
-  const T ratio_pow = exp(p.stribeck_exponent * log(T(speed / p.stribeck_velocity)));
-  if (p.shape == StribeckShape::Exponential) return exp(-ratio_pow);
-  return T(1) / (T(1) + ratio_pow);
+  return stribeck_weight_of_log_ratio(p, T(log(T(speed / p.stribeck_velocity))));
 }
 
 /// s(v) [m] of eq. 3 (or its exponential counterpart), times the slip-force level.

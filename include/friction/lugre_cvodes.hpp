@@ -65,7 +65,9 @@
 // resolution, for 1.3-1.5x the time of rtol 1e-5.  Rejected after measuring: not
 // restarting (stop time only, history carried across the velocity jump) took up to 35 % fewer steps
 // but erred by 3.9e-3 N; an initial-step hint from the previous interval gained nothing;
-// CV_SIMULTANEOUS and fused vector operations changed the time by < 10 %.  Sensitivities
+// CV_SIMULTANEOUS changed the time by < 10 %.  Fused vector operations, measured then as well
+// at < 10 %, are on since the stretches of one velocity: on the strokes bench record they take
+// 2-3 ms off LG's 25 ms check with the same Jacobian to the bit.  Sensitivities
 // cost 4.5-5.5x the plain run (the time goes into CVODES' per-vector operations, not the Jet
 // right-hand side), 10-12x with their error control on.  For identification, Jets through the exact
 // step (`LuGre<ceres::Jet>`) give the same Jacobian some 300x cheaper; these sensitivities are the
