@@ -9,6 +9,7 @@
 #include "friction/metrics.hpp"
 #include "joint_fit_memo.hpp"
 #include "position_origin.hpp"
+#include "subnormals.hpp"
 
 namespace friction {
 
@@ -44,6 +45,7 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
 
 Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
                    const DiagnoseOptions& o) {
+  const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
   using namespace diagnose_detail;
   const auto started = std::chrono::steady_clock::now();
   FRICTION_CHECK(est_as_recorded.has_force() && val_as_recorded.has_force(),

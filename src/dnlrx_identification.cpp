@@ -19,6 +19,7 @@
 #include "compressed_cost.hpp"
 #include "parallel_for.hpp"
 #include "slip_regression.hpp"
+#include "subnormals.hpp"
 
 namespace friction {
 namespace {
@@ -454,6 +455,7 @@ DnlrxFreeRun free_run_dnlrx(const DnlrxParameters<double>& p, std::span<const do
 
 DnlrxResult identify_dnlrx(std::span<const double> time, std::span<const double> x,
                            std::span<const double> force, const DnlrxOptions& opt) {
+  const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
   const auto clock_start = std::chrono::steady_clock::now();
   FRICTION_CHECK(time.size() == x.size() && x.size() == force.size(),
                  "identify_dnlrx: time, displacement and force lengths differ");

@@ -14,6 +14,7 @@
 #include "bounded_solver.hpp"
 #include "compressed_cost.hpp"
 #include "streamed_autodiff_cost.hpp"
+#include "subnormals.hpp"
 
 namespace friction {
 
@@ -316,6 +317,7 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
                                   const std::vector<double>& rho0,
                                   const ExtensionParameters<double>& ext0, bool fix_theta,
                                   int max_iterations) {
+  const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
   const std::size_t m = base0.size();
   std::vector<double> theta;
   for (std::size_t i = 0; i < m; ++i) theta.push_back(std::log(base0.stiffness[i]));

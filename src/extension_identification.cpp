@@ -15,6 +15,7 @@
 #include "friction/lg.hpp"
 #include "number_format.hpp"
 #include "position_origin.hpp"
+#include "subnormals.hpp"
 
 namespace friction {
 
@@ -206,6 +207,7 @@ ExtensionIdentification identify_extensions(const AnyModel& base, const Record& 
                                             const std::vector<double>& base_initial,
                                             const std::vector<Effect>& effects,
                                             const ExtensionFitOptions& o) {
+  const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
   const auto started = std::chrono::steady_clock::now();
   FRICTION_CHECK(r.has_force(), r.source, ": the record has no force to identify from");
   FRICTION_CHECK(base.extensions().empty(), "identify_extensions: the base carries pieces already");

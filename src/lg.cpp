@@ -23,6 +23,7 @@
 #include "friction/lugre_transition_table.hpp"
 #include "friction/motion.hpp"
 #include "sample_statistics.hpp"
+#include "subnormals.hpp"
 
 namespace friction {
 namespace {
@@ -944,6 +945,7 @@ LuGreFreeRun free_run_lugre(const LuGreParameters<double>& parameters, std::span
 
 LgResult identify_lugre(std::span<const double> time, std::span<const double> x,
                         std::span<const double> force, const LgOptions& o) {
+  const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
   const auto clock_start = std::chrono::steady_clock::now();
   auto lap_t = clock_start;
   auto lap = [&lap_t](double& into) {

@@ -10,6 +10,7 @@
 #include "friction/metrics.hpp"
 #include "friction/nlr.hpp"
 #include "friction/signals.hpp"
+#include "subnormals.hpp"
 
 namespace friction {
 
@@ -107,6 +108,7 @@ IdentifiedModel with_extensions(IdentifiedModel base, const Record& r, const Met
 
 IdentifiedModel identify_model(const std::string& type_or_name, const Record& r,
                                const MethodOptions& o) {
+  const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
   require_force(r);
   const std::string type = method_type(type_or_name);
   if (o.extensions.empty()) return identify_base(type, r, o);
@@ -212,6 +214,7 @@ IdentifiedModel identify_base(const std::string& type, const Record& r, const Me
 }  // namespace
 
 Validation validate_model(const AnyModel& model, const Record& r) {
+  const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
   require_force(r);
   Validation v;
   const bool plain = model.extensions().empty();

@@ -22,6 +22,7 @@
 #include "merged_column_gram.hpp"
 #include "parallel_for.hpp"
 #include "slip_regression.hpp"
+#include "subnormals.hpp"
 
 namespace friction {
 namespace {
@@ -1244,6 +1245,7 @@ namespace {
 NlrResult identify(std::span<const double> time, std::span<const double> x,
                    std::span<const double> force, const NlrOptions& o,
                    const detail::SlipLimits* limits) {
+  const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
   const auto clock_start = std::chrono::steady_clock::now();
   FRICTION_CHECK(time.size() == x.size() && x.size() == force.size(),
                  "identify_maxwell_slip: time, displacement and force lengths differ");

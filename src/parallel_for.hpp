@@ -10,6 +10,8 @@
 #include <thread>
 #include <vector>
 
+#include "subnormals.hpp"
+
 namespace friction::detail {
 
 /// Calls body(i) once for every i in [0, count) on min(count, threads) threads, the calling
@@ -35,8 +37,15 @@ void parallel_for(std::size_t count, unsigned threads, Body&& body,
   };
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
   const std::size_t n = std::min<std::size_t>(threads ? threads : cores, count);
+  // The workers compute in the caller's floating-point mode (subnormals.hpp), as the caller's
+  // own share does: the same numbers on any thread count.
+  const unsigned long long mode = floating_point_mode();
   std::vector<std::thread> pool;
-  for (std::size_t k = 1; k < n; ++k) pool.emplace_back(work);
+  for (std::size_t k = 1; k < n; ++k)
+    pool.emplace_back([&work, mode] {
+      set_floating_point_mode(mode);
+      work();
+    });
   work();
   for (auto& t : pool) t.join();
   for (const auto& f : failed)

@@ -9,6 +9,7 @@
 #include "friction/atomic_file.hpp"
 #include "friction/version.hpp"
 #include "report_option.hpp"
+#include "../subnormals.hpp"
 
 namespace friction::cli {
 
@@ -110,6 +111,7 @@ void add_output_options(CLI::App& command, OutputOptions& out) {
 }
 
 int run(int argc, char** argv) {
+  const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
   set_command_line(argc, argv);
   CLI::App app{
       "friction-identify: identify friction models (LuGre, Maxwell Slip, DNLRX, GMS) "
