@@ -5,10 +5,10 @@
 // bulk, and none of them carries information.  Measured on `diagnose` of data/ (perf, one
 // thread, with and without the flush; README, "Subnormal numbers"):
 //
-//   - the Stribeck weight exp(-(|v|/vs)^q) of eq. (2) falls through 1e-300 over a band of speeds
-//     above vs; its Jet lanes and their products (the slip limits scaled by it, the operators'
-//     deflections against them) follow it below 2.2e-308: with the flush, the time in the
-//     weight's Jet code and in the Jet products fell by 97 % and 89 %;
+//   - the Stribeck weight exp(-(|v|/vs)^q) (stribeck.hpp) falls through 1e-300 over a band of
+//     speeds above vs; its Jet lanes and their products (the slip limits scaled by it, the
+//     operators' deflections against them) follow it below 2.2e-308: with the flush, the time
+//     in the weight's Jet code and in the Jet products fell by 97 % and 89 %;
 //   - the Gram matrices of the compressed problems (compressed_cost.hpp) square such Jacobian
 //     entries: 1.45 s of an 8.6 s run, 0.18 s with the flush.
 //
