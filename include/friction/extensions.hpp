@@ -530,11 +530,10 @@ class Extended {
         lag_started_ = true;
       } else if (dt > 0.0 && c.piece_velocity_at_instant) {
         const T slope_tau = (v - previous_piece_velocity_) * tau / c.dt;
-        lagged_velocity_ =
-            v - slope_tau +
-            (lagged_velocity_ - previous_piece_velocity_ + slope_tau) * exp(-c.dt / tau);
+        lagged_velocity_ = v - slope_tau + (lagged_velocity_ - previous_piece_velocity_ +
+                                            slope_tau) * lag_decay(c.dt, tau);
       } else if (dt > 0.0) {
-        lagged_velocity_ = v + (lagged_velocity_ - v) * exp(-c.dt / tau);
+        lagged_velocity_ = v + (lagged_velocity_ - v) * lag_decay(c.dt, tau);
       }
       previous_piece_velocity_ = v;
       v = lagged_velocity_;
@@ -635,9 +634,27 @@ class Extended {
     a = ring_a_[newer];
   }
 
+  // exp(-dt / tau) of the frictional lag over an interval dt.  The pieces are fixed for the
+  // object's life (constructor) and a record's dt carries no derivative (motion.hpp), so the factor
+  // is a function of dt's value alone: it is kept for the last dt, which on a uniformly sampled
+  // record is every step's.  The exponential of each step was 2 % of a diagnosis of data/.
+  T lag_decay(const T& dt, const T& tau) {
+    using std::exp;
+    if constexpr (requires { dt.v.isZero(); })
+      if (!dt.v.isZero()) return exp(-dt / tau);  // a dt with derivatives: not cached
+    const double d = value_of(dt);
+    if (!(d == lag_decay_dt_)) {
+      lag_decay_ = exp(-dt / tau);
+      lag_decay_dt_ = d;
+    }
+    return lag_decay_;
+  }
+
   Base base_;
   Parameters p_;
   T f0_{0};
+  double lag_decay_dt_ = std::numeric_limits<double>::quiet_NaN();  // dt of lag_decay_
+  T lag_decay_{0};
   // Extension states.
   T lagged_velocity_{0};
   bool lag_started_ = false;
