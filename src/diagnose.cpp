@@ -44,8 +44,12 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
 }  // namespace
 
 Diagnosis diagnose(const Record& est_as_recorded, const Record& val_as_recorded,
-                   const DiagnoseOptions& o) {
+                   const DiagnoseOptions& options) {
   const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
+  // The diagnosis's thread count is every stage's, the baseline's order selection and the
+  // restarts' included (MethodOptions::threads would otherwise mean one per core).
+  DiagnoseOptions o = options;
+  o.method.threads = o.threads;
   using namespace diagnose_detail;
   const auto started = std::chrono::steady_clock::now();
   FRICTION_CHECK(est_as_recorded.has_force() && val_as_recorded.has_force(),

@@ -218,7 +218,9 @@ struct DiagnoseOptions {
   bool backward_pass = true;
   /// The candidates of a round are independent fits of const inputs: they run on this many
   /// threads (0: std::thread::hardware_concurrency()), each writing its own slot, so the result
-  /// is the same bit for bit for any count.
+  /// is the same bit for bit for any count.  The other stages' concurrent work (the baseline's
+  /// order selection, the restarts, the findings' reports) runs on as many; `method.threads` is
+  /// not read.
   unsigned threads = 0;
 };
 
