@@ -13,6 +13,7 @@
 
 #include "bounded_solver.hpp"
 #include "compressed_cost.hpp"
+#include "extension_steps.hpp"
 #include "streamed_autodiff_cost.hpp"
 #include "subnormals.hpp"
 
@@ -317,6 +318,14 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
                                   const std::vector<double>& rho0,
                                   const ExtensionParameters<double>& ext0, bool fix_theta,
                                   int max_iterations) {
+  return extension_detail::fit_extended_slip_within_reach(
+      r, base0, rho0, ext0, fix_theta, max_iterations, std::numeric_limits<double>::infinity());
+}
+
+ExtendedSlipFit extension_detail::fit_extended_slip_within_reach(
+    const Record& r, const MaxwellSlipParameters<double>& base0, const std::vector<double>& rho0,
+    const ExtensionParameters<double>& ext0, bool fix_theta, int max_iterations,
+    double target_rss) {
   const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
   const std::size_t m = base0.size();
   std::vector<double> theta;
@@ -398,6 +407,12 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
   options.function_tolerance = detail::resolved_function_tolerance(r.size());
   options.parameter_tolerance = 1e-9;
   detail::use_value_only_line_search(options);
+  // The cost is 0.5 RSS / rms^2.  No noise rule: a fit whose result is compared with others is
+  // run to the same tolerance whatever its noise.
+  const double residual_scale = rms > 0 ? 1.0 / rms : 1.0;
+  detail::HopelessSearch hopeless(0.5 * target_rss * residual_scale * residual_scale, 0.0,
+                                  max_iterations);
+  if (std::isfinite(target_rss)) options.callbacks.push_back(&hopeless);
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
 

@@ -341,10 +341,21 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
   // from that force; another may give one).  Several branches share the threads; one alone gives
   // them to NLR's order selection.
   std::vector<std::optional<ExtendedSlipFit>> fits(branches.size());
+  // A joint fit from NLR's base is of use only when its BIC ends below that of `cur` (every
+  // caller keeps it only then): with M operators, at an RSS below cur.rss exp((p_cur - p) ln N /
+  // N).  One that at its pace cannot get there in its budget is stopped (header comment, 1).
   const auto joint_fit = [&](const MaxwellSlipParameters<double>& base,
                              const std::vector<double>& rho) {
-    return memo ? memo->fit(r, base, rho, cur.ext, o.max_iterations)
-                : fit_extended_slip(r, base, rho, cur.ext, false, o.max_iterations);
+    const double n_samples = static_cast<double>(r.size());
+    const double p_cur = static_cast<double>(2 * cur.base.size() + cur.ext.parameter_count());
+    const double p = static_cast<double>(2 * base.size() + cur.ext.parameter_count());
+    const double target =
+        cur.ok && std::isfinite(cur.rss)
+            ? cur.rss * std::exp((p_cur - p) * std::log(n_samples) / n_samples)
+            : std::numeric_limits<double>::infinity();
+    return memo ? memo->fit(r, base, rho, cur.ext, o.max_iterations, target)
+                : fit_extended_slip_within_reach(r, base, rho, cur.ext, false, o.max_iterations,
+                                                 target);
   };
   NlrOptions under = n;
   under.refine_initial_state = false;  // its search knows only the nominal box

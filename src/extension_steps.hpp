@@ -40,6 +40,17 @@ void note_rank_deficiency(ExtensionIdentification& res, bool rank_deficient);
 void judge_evidence(ExtensionIdentification& res, const std::vector<Effect>& effects, double f0,
                     double sigmas);
 
+/// fit_extended_slip, stopped early when it cannot end below `target_rss` [N^2]: at the pace of
+/// its last iterations (detail::HopelessSearch, bounded_solver.hpp) its remaining budget would not
+/// get it there.  A stopped fit returns where it stopped (ok, its RSS above the target).  Infinity:
+/// fit_extended_slip.  For a fit whose only use is to beat a known RSS: the restart's.
+ExtendedSlipFit fit_extended_slip_within_reach(const Record& r,
+                                               const MaxwellSlipParameters<double>& base0,
+                                               const std::vector<double>& rho0,
+                                               const ExtensionParameters<double>& ext0,
+                                               bool fix_theta, int max_iterations,
+                                               double target_rss);
+
 /// The restart (section 1): NLR (order selected again) on the force without the pieces, the joint
 /// fit from that base; the fit with the lower BIC is returned (`restarted` says which), then
 /// grown one operator at a time while BIC falls (o.grow_operators, section 1: Order growth).

@@ -23,6 +23,7 @@
 
 #include "friction/extension_fit.hpp"
 #include "friction/record.hpp"
+#include "extension_steps.hpp"
 
 namespace friction::extension_detail {
 
@@ -36,20 +37,22 @@ class JointFitMemo {
   JointFitMemo(const JointFitMemo&) = delete;
   JointFitMemo& operator=(const JointFitMemo&) = delete;
 
-  /// fit_extended_slip(r, base, rho, ext, false, max_iterations), made once for each distinct set
-  /// of arguments while it is kept.  Safe to call from several threads; two threads asking for
+  /// fit_extended_slip_within_reach(r, base, rho, ext, false, max_iterations, target_rss)
+  /// (extension_steps.hpp), made once for each distinct set of arguments while it is kept.  Safe to call from several threads; two threads asking for
   /// the same new fit at once both make it (the same fit).  A fit that throws is not remembered.
   ExtendedSlipFit fit(const Record& r, const MaxwellSlipParameters<double>& base,
                       const std::vector<double>& rho, const ExtensionParameters<double>& ext,
-                      int max_iterations) {
-    if (&r != record_) return fit_extended_slip(r, base, rho, ext, false, max_iterations);
-    std::vector<std::uint64_t> key = key_of(base, rho, ext, max_iterations);
+                      int max_iterations, double target_rss) {
+    if (&r != record_)
+      return fit_extended_slip_within_reach(r, base, rho, ext, false, max_iterations, target_rss);
+    std::vector<std::uint64_t> key = key_of(base, rho, ext, max_iterations, target_rss);
     {
       const std::lock_guard<std::mutex> lock(mutex_);
       for (const auto& [k, f] : fits_)
         if (k == key) return f;
     }
-    ExtendedSlipFit f = fit_extended_slip(r, base, rho, ext, false, max_iterations);
+    ExtendedSlipFit f =
+        fit_extended_slip_within_reach(r, base, rho, ext, false, max_iterations, target_rss);
     const std::lock_guard<std::mutex> lock(mutex_);
     ++made_;
     fits_.emplace_back(std::move(key), f);
@@ -64,15 +67,16 @@ class JointFitMemo {
   }
 
  private:
-  // Every argument as bits: the iteration cap, the base, the state, and each piece present with
+  // Every argument as bits: the iteration cap, the target, the base, the state, and each piece present with
   // its effect and every parameter in the pieces' own order, then the reference force.
   static std::vector<std::uint64_t> key_of(const MaxwellSlipParameters<double>& base,
                                            const std::vector<double>& rho,
                                            const ExtensionParameters<double>& ext,
-                                           int max_iterations) {
+                                           int max_iterations, double target_rss) {
     std::vector<std::uint64_t> key;
-    key.reserve(4 + 2 * base.size() + rho.size() + 2 * ext.parameter_count());
+    key.reserve(5 + 2 * base.size() + rho.size() + 2 * ext.parameter_count());
     key.push_back(static_cast<std::uint64_t>(static_cast<std::int64_t>(max_iterations)));
+    key.push_back(std::bit_cast<std::uint64_t>(target_rss));
     key.push_back(base.size());
     for (std::size_t i = 0; i < base.size(); ++i) {
       key.push_back(std::bit_cast<std::uint64_t>(base.stiffness[i]));

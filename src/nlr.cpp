@@ -461,58 +461,7 @@ std::vector<double> start_rho(const Data& d, const std::vector<double>& thr) {
   return rho;
 }
 
-// Stops a local search in two cases, both judged on the pace of its last `kWindow` iterations
-// (decrease of the best cost per iteration over the window; rejected steps count as iterations
-// without progress, which is why the window is not shorter):
-//  * Hopeless: it cannot reach `target` (Ceres cost) within its iteration budget even if it kept
-//    that pace: (best cost - target) > (iterations left) x pace.  Searches that crawl along a
-//    valley of this piecewise-smooth cost (one start on the README's record took all 100
-//    iterations, at 1e-5 relative per iteration, to end 75 % above the minimum another start had
-//    reached in 8) are the ones it stops; a search still descending fast, or one that can still
-//    end within the stall tolerance of the target, continues.  The extrapolation is linear, which
-//    over-estimates what a decelerating search will gain.
-//  * Converged to the noise: at that pace its whole budget of iterations would lower the RSS by
-//    less than one noise variance sigma^2 (`noise_cost`, in cost units: 0.5 sigma^2), i.e. by less
-//    than half a unit of log-likelihood; no parameter can move by a visible part of its standard
-//    error.  LM crawls like this from kink to kink of the cost near a minimum (a polish on the
-//    multisine bench record spent 60 of its 101 iterations gaining 0.2 sigma^2 in all), and
-//    Ceres' relative function tolerance, which knows nothing of the noise, does not stop it.
-class HopelessSearch final : public ceres::IterationCallback {
- public:
-  static constexpr std::size_t kWindow = 10;
-  HopelessSearch(double target, double noise_cost, int max_iterations)
-      : target_(target), noise_cost_(noise_cost), max_iterations_(max_iterations) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-    return keep_going(it.cost) ? ceres::SOLVER_CONTINUE : ceres::SOLVER_TERMINATE_SUCCESSFULLY;
-  }
-  // `cost`: the search's cost [0.5 RSS] after its next iteration (or at its start).
-  bool keep_going(double cost) {
-    const double best = best_.empty() ? cost : std::min(best_.back(), cost);
-    best_.push_back(best);
-    const std::size_t k = best_.size() - 1;
-    if (k < kWindow) return true;
-    const double pace = (best_[k - kWindow] - best) / static_cast<double>(kWindow);
-    if (noise_cost_ > 0.0 && pace * static_cast<double>(max_iterations_) < noise_cost_) {
-      converged_ = true;
-      return false;
-    }
-    if (!std::isfinite(target_) || best <= target_) return true;
-    const double left = static_cast<double>(std::max(0, max_iterations_ - static_cast<int>(k)));
-    if (best - target_ <= left * pace) return true;
-    stopped_ = true;
-    return false;
-  }
-  bool stopped() const { return stopped_; }
-  bool converged() const { return converged_; }
-
- private:
-  double target_, noise_cost_;
-  int max_iterations_;
-  std::vector<double> best_;
-  bool stopped_ = false, converged_ = false;
-};
-
-// `target` [RSS/SSS %]: the lowest cost already known to be reachable (HopelessSearch); infinity
+// `target` [RSS/SSS %]: the lowest cost already known to be reachable (detail::HopelessSearch, bounded_solver.hpp); infinity
 // disables the stop.
 Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, const NlrOptions& o,
                  double target = std::numeric_limits<double>::infinity()) {
@@ -520,7 +469,7 @@ Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, 
   for (double& v : s) v = std::clamp(v, 0.0, 1.0);
   Fit fit;
   const double n = static_cast<double>(d.y.size());
-  HopelessSearch hopeless(target * (1.0 + o.stall_tolerance) * n / 200.0, 0.5 * d.sigma2,
+  detail::HopelessSearch hopeless(target * (1.0 + o.stall_tolerance) * n / 200.0, 0.5 * d.sigma2,
                           o.max_iterations);
   ceres::Solver::Options so = solver_options(o, d.x.size());
   std::vector<double> logk;

@@ -1,15 +1,19 @@
 // The joint-fit memory of a diagnosis (src/joint_fit_memo.hpp): a fit asked again with the same
 // arguments is the fit made before, bit for bit, without being made again; an argument changed in
 // its last bit, anywhere, makes a new fit, the one fit_extended_slip makes for it; another record
-// is never served from the memory.
+// is never served from the memory.  And the target of a restart's fit (extension_steps.hpp,
+// fit_extended_slip_within_reach): a fit that cannot reach it stops early, one that reaches it is
+// the fit made without one.
 #include <gtest/gtest.h>
 
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
+#include "../src/extension_steps.hpp"
 #include "../src/joint_fit_memo.hpp"
 #include "diagnose_support.hpp"
 #include "friction/extension_fit.hpp"
@@ -56,22 +60,25 @@ TEST(JointFitMemo, AFitAskedAgainIsTheFitMadeAndAnyChangedBitMakesANewOne) {
   ext.offset.emplace();
   ext.offset->offset = 0.01;
   const int iterations = 20;
+  const double anywhere = std::numeric_limits<double>::infinity();  // no target: any RSS serves
 
   extension_detail::JointFitMemo memo(r);
-  const ExtendedSlipFit first = memo.fit(r, base, rho, ext, iterations);
+  const ExtendedSlipFit first = memo.fit(r, base, rho, ext, iterations, anywhere);
   ASSERT_TRUE(first.ok);
   EXPECT_EQ(memo.made(), 1u);
   expect_same_fit(first, fit_extended_slip(r, base, rho, ext, false, iterations), "direct");
-  expect_same_fit(memo.fit(r, base, rho, ext, iterations), first, "again");
+  expect_same_fit(memo.fit(r, base, rho, ext, iterations, anywhere), first, "again");
   EXPECT_EQ(memo.made(), 1u);
 
   // Each argument changed in its last bit: a new fit, fit_extended_slip's.
   std::size_t made = 1;
   const auto expect_new = [&](const MaxwellSlipParameters<double>& b, const std::vector<double>& s,
-                              const ExtensionParameters<double>& e, int it, const char* what) {
-    const ExtendedSlipFit f = memo.fit(r, b, s, e, it);
+                              const ExtensionParameters<double>& e, int it, const char* what,
+                              double target = std::numeric_limits<double>::infinity()) {
+    const ExtendedSlipFit f = memo.fit(r, b, s, e, it, target);
     EXPECT_EQ(memo.made(), ++made) << what;
-    expect_same_fit(f, fit_extended_slip(r, b, s, e, false, it), what);
+    expect_same_fit(
+        f, extension_detail::fit_extended_slip_within_reach(r, b, s, e, false, it, target), what);
   };
   MaxwellSlipParameters<double> b2 = base;
   b2.threshold[2] = next_up(b2.threshold[2]);
@@ -91,9 +98,10 @@ TEST(JointFitMemo, AFitAskedAgainIsTheFitMadeAndAnyChangedBitMakesANewOne) {
   e4.drift->relative_rate = ext.offset->offset;
   expect_new(base, rho, e4, iterations, "another piece");
   expect_new(base, rho, ext, iterations + 1, "the iteration cap");
+  expect_new(base, rho, ext, iterations, "a target", first.rss);
 
   // Another record: fitted, never remembered or served.
-  const ExtendedSlipFit f = memo.fit(other, base, rho, ext, iterations);
+  const ExtendedSlipFit f = memo.fit(other, base, rho, ext, iterations, anywhere);
   EXPECT_EQ(memo.made(), made);
   expect_same_fit(f, fit_extended_slip(other, base, rho, ext, false, iterations), "other record");
 
@@ -101,12 +109,45 @@ TEST(JointFitMemo, AFitAskedAgainIsTheFitMadeAndAnyChangedBitMakesANewOne) {
   for (std::size_t j = 0; j < extension_detail::JointFitMemo::kKept; ++j) {
     std::vector<double> s = rho;
     s[0] = 0.01 * static_cast<double>(j + 1);
-    memo.fit(r, base, s, ext, iterations);
+    memo.fit(r, base, s, ext, iterations, anywhere);
   }
   made += extension_detail::JointFitMemo::kKept;
   EXPECT_EQ(memo.made(), made);
-  expect_same_fit(memo.fit(r, base, rho, ext, iterations), first, "made again");
+  expect_same_fit(memo.fit(r, base, rho, ext, iterations, anywhere), first, "made again");
   EXPECT_EQ(memo.made(), made + 1);
+}
+
+
+TEST(JointFitMemo, AFitThatCannotReachItsTargetStopsEarlyAndOneThatReachesItIsTheWholeFit) {
+  Excitation ex;
+  const std::vector<Injection> effects{{Injected::viscous, 40.0}, {Injected::offset, 0.05}};
+  const Record r = testing::with_noise(testing::make_clean(effects, ex, 1500, 0.0), 2e-3, 23);
+  // Far off the truth (thresholds 10 times too large, no viscous term yet), so that the fit takes
+  // more iterations than the stop's window of 10.
+  MaxwellSlipParameters<double> base;
+  base.stiffness = {3.6e4, 3.3e4, 1.7e4, 1.2e4};
+  base.threshold = {1.2e-5, 2.6e-5, 8e-5, 1.4e-4};
+  const std::vector<double> rho{0.1, -0.2, 0.0, 0.3};
+  ExtensionParameters<double> ext;
+  ext.reference_force = base.sliding_force();
+  ext.viscous.emplace();
+  ext.viscous->viscous = 0.0;
+  ext.offset.emplace();
+  ext.offset->offset = 0.0;
+  const int iterations = 60;
+  const ExtendedSlipFit whole = fit_extended_slip(r, base, rho, ext, false, iterations);
+  ASSERT_TRUE(whole.ok);
+  const ExtendedSlipFit start = fit_extended_slip(r, base, rho, ext, true, 0);
+  ASSERT_GT(start.rss, 2.0 * whole.rss) << "the start must leave the fit something to do";
+  // A target half of what the fit reaches: the fit stops on its way, above where it would end.
+  const ExtendedSlipFit stopped = extension_detail::fit_extended_slip_within_reach(
+      r, base, rho, ext, false, iterations, 0.5 * whole.rss);
+  ASSERT_TRUE(stopped.ok);
+  EXPECT_GT(stopped.rss, whole.rss);
+  // Reached: the callback only watches, so the fit is the whole one, bit for bit.
+  expect_same_fit(extension_detail::fit_extended_slip_within_reach(r, base, rho, ext, false,
+                                                                   iterations, 1.05 * whole.rss),
+                  whole, "a target reached");
 }
 
 }  // namespace
