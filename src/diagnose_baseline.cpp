@@ -119,7 +119,15 @@ double measurement_floor_rss(const State& s, const std::vector<double>& rho, con
   const Resolution sensor = estimate_displacement_resolution(r.measured());
   std::vector<double> sums(kSensorReplicas, 0.0);
   std::vector<char> made(kSensorReplicas, 0);
-  detail::parallel_for(kSensorReplicas, threads, [&](std::size_t j) {
+  // The stepping's part (below) as one more task beside the replicas: the slowest, first.
+  double stepping_part = 0;
+  std::vector<std::size_t> order{kSensorReplicas};
+  for (std::size_t j = 0; j < kSensorReplicas; ++j) order.push_back(j);
+  detail::parallel_for(kSensorReplicas + 1, threads, [&](std::size_t j) {
+    if (j == kSensorReplicas) {
+      stepping_part = squared_change(stepped_finely(s, initial, r));
+      return;
+    }
     Record replica;
     DerivativeWindows rw;
     if (!remeasured_replica(r, 0x9e3779b97f4a7c15ULL * (j + 1), replica, sensor, &rw)) return;
@@ -127,14 +135,12 @@ double measurement_floor_rss(const State& s, const std::vector<double>& rho, con
     if (!std::isfinite(sum)) return;
     sums[j] = sum;
     made[j] = 1;
-  });
+  }, order);
   double total = 0;
   std::size_t count = 0;
   for (std::size_t j = 0; j < kSensorReplicas; ++j)
     if (made[j]) total += sums[j], ++count;
   const double sensor_part = count > 0 ? total / static_cast<double>(count) : 0.0;
-  // The stepping's part.
-  const double stepping_part = squared_change(stepped_finely(s, initial, r));
   return sensor_part + (std::isfinite(stepping_part) ? stepping_part : 0.0);
 }
 
