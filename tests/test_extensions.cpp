@@ -257,6 +257,53 @@ TEST(Extensions, PositionDependenceFollowsTheTravel) {
     ASSERT_NEAR(f[k], kF0 + 0.1 * std::sin(2 * M_PI * x[k] / 100e-6 + 0.3), 1e-12) << k;
 }
 
+// The velocity stage recorded on one run and replayed on another whose pieces differ only after
+// it (a profile's grid points, extension_profile.cpp) gives the force that run computes, bit for
+// bit; a replay shorter than the run hands over to computing with the lag's state intact.
+TEST(Extensions, AReplayedVelocityStageGivesTheComputedForceBitForBit) {
+  std::vector<double> time(3000), x(3000);
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    time[k] = 1e-3 * static_cast<double>(k);
+    // Reversals, rests near the turns and speeds through the Stribeck curve's range.
+    x[k] = 40e-6 * std::sin(2 * M_PI * 0.7 * time[k]) + 5e-6 * std::sin(2 * M_PI * 3.1 * time[k]);
+  }
+  ExtensionParameters<double> p;
+  p.frictional_lag = {{0.01}};
+  p.stribeck = {{/*static=*/1.5 * kF0, /*vs=*/1e-4, /*q=*/1.7}};
+  p.viscous = {{30.0}};
+  p.position_dependence = {{/*amplitude=*/0.05, /*wavelength=*/30e-6, /*phase=*/0.3}};
+  ExtensionParameters<double> q = p;  // another grid point of the position profile
+  q.position_dependence = {{/*amplitude=*/0.1, /*wavelength=*/17e-6, /*phase=*/2.0}};
+
+  std::vector<double> lagged, factor;
+  auto recording = extended(p);
+  recording.record_velocity_stage(lagged, factor);
+  const auto recorded_force = run(recording, time, x);
+  ASSERT_EQ(lagged.size(), x.size());
+  ASSERT_EQ(factor.size(), x.size());
+  auto plain_p = extended(p);
+  EXPECT_EQ(run(plain_p, time, x), recorded_force);
+
+  auto plain = extended(q);
+  const auto computed = run(plain, time, x);
+  ASSERT_NE(computed, recorded_force);  // the position piece moved the force
+  auto replaying = extended(q);
+  replaying.replay_velocity_stage(lagged, factor);
+  EXPECT_EQ(run(replaying, time, x), computed);
+  // Half the stage replayed, the rest computed.
+  auto half = extended(q);
+  half.replay_velocity_stage(std::span<const double>(lagged).first(1500),
+                             std::span<const double>(factor).first(1500));
+  EXPECT_EQ(run(half, time, x), computed);
+  // A replay of another lag is a different force: the replay is what the run reads.
+  ExtensionParameters<double> other_lag = q;
+  other_lag.frictional_lag = {{0.002}};
+  auto wrong = extended(other_lag);
+  wrong.replay_velocity_stage(lagged, factor);
+  auto right = extended(other_lag);
+  EXPECT_NE(run(wrong, time, x), run(right, time, x));
+}
+
 TEST(Extensions, DriftScalesTheLevelWithTime) {
   ExtensionParameters<double> p;
   p.drift = {{-0.05}};

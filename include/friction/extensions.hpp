@@ -450,6 +450,33 @@ class Extended {
   /// Until the next reset.
   void set_initial_lag_offset(const T& offset) noexcept { initial_lag_offset_ = offset; }
 
+  /// The velocity stage of the level, for a caller that runs the same pieces many times on one
+  /// record with only pieces after that stage changed (the profiled starts, extension_fit.hpp):
+  /// each step's lag velocity v_l and Stribeck factor 1 + (Fs/F0 - 1) w(v_l) are appended to
+  /// `lagged` and `factor` (record), or read from them in order instead of computed (replay).
+  /// They depend on the lag, the Stribeck curve, the lag's initial offset and the record's
+  /// velocity only, so a replay on the same record with those the same gives the same force, bit
+  /// for bit; a step beyond what was recorded computes them again.  The vectors must outlive the
+  /// run (reserve a recording's: a step is noexcept); steps keep appending or reading across
+  /// reset_extension_state, which restarts the count.
+  /// Double only: a Jet's lanes are not recorded.
+  void record_velocity_stage(std::vector<double>& lagged, std::vector<double>& factor) noexcept
+    requires std::is_same_v<T, double>
+  {
+    stage_record_lagged_ = &lagged;
+    stage_record_factor_ = &factor;
+    stage_replay_lagged_ = {};
+    stage_replay_factor_ = {};
+  }
+  void replay_velocity_stage(std::span<const double> lagged,
+                             std::span<const double> factor) noexcept
+    requires std::is_same_v<T, double>
+  {
+    stage_replay_lagged_ = lagged.first(std::min(lagged.size(), factor.size()));
+    stage_replay_factor_ = factor.first(stage_replay_lagged_.size());
+    stage_record_lagged_ = stage_record_factor_ = nullptr;
+  }
+
   /// Extension states only (lag, direction, delay ring, accumulated x and t): keeps a base state
   /// set through base().
   void reset_extension_state() {
@@ -469,6 +496,7 @@ class Extended {
     ring_head_ = 0;
     delayed_x_started_ = false;
     delayed_x_ = T(0);
+    stage_step_ = 0;
   }
 
   /// The FrictionModel interface: builds the context from the increments (see the header).
@@ -516,28 +544,10 @@ class Extended {
   /// One sample whose context is already shifted by the delay (record-level simulation does it by
   /// interpolation): every piece but the delay.
   T step_shifted(const ExtendedMotion<T>& c) noexcept {
-    using std::exp;
     using std::sin;
-    const double dt = value_of(c.dt);
     T v = c.piece_velocity;
-    if (p_.frictional_lag) {
-      const T& tau = p_.frictional_lag->lag_time;
-      if (value_of(tau) <= 0.0) {
-        lagged_velocity_ = v;
-        lag_started_ = true;
-      } else if (!lag_started_) {
-        lagged_velocity_ = v + initial_lag_offset_;
-        lag_started_ = true;
-      } else if (dt > 0.0 && c.piece_velocity_at_instant) {
-        const T slope_tau = (v - previous_piece_velocity_) * tau / c.dt;
-        lagged_velocity_ = v - slope_tau + (lagged_velocity_ - previous_piece_velocity_ +
-                                            slope_tau) * lag_decay(c.dt, tau);
-      } else if (dt > 0.0) {
-        lagged_velocity_ = v + (lagged_velocity_ - v) * lag_decay(c.dt, tau);
-      }
-      previous_piece_velocity_ = v;
-      v = lagged_velocity_;
-    }
+    T here(1);  // the Stribeck factor at v
+    if (!replayed_velocity_stage(c, v, here)) computed_velocity_stage(c, v, here);
 
     // The level at t_k and, when the interval holds a turn, at the extremum (motion.hpp, The level
     // at the turn): there the motion stands still (the lagged velocity, when there is a lag, does
@@ -545,11 +555,8 @@ class Extended {
     const bool turns = value_of(c.turn) != 0.0;
     T level = c.level, at_turn = c.level;
     if (p_.stribeck) {
-      const auto& s = *p_.stribeck;
-      const T excess = s.static_force / f0_ - T(1);
-      const T here = T(1) + excess * stribeck_weight(v, s.stribeck_velocity, s.stribeck_exponent);
       level *= here;
-      if (turns) at_turn *= p_.frictional_lag ? here : T(s.static_force / f0_);
+      if (turns) at_turn *= p_.frictional_lag ? here : T(p_.stribeck->static_force / f0_);
     }
     if (p_.position_dependence) {
       const auto& pd = *p_.position_dependence;
@@ -634,6 +641,60 @@ class Extended {
     a = ring_a_[newer];
   }
 
+  // The velocity stage of the next step, computed: the lag's velocity (from v, the pieces'
+  // velocity, on entry) and the Stribeck factor at it, recorded when a recording is on.
+  void computed_velocity_stage(const ExtendedMotion<T>& c, T& v, T& here) noexcept {
+    const double dt = value_of(c.dt);
+    if (p_.frictional_lag) {
+      const T& tau = p_.frictional_lag->lag_time;
+      if (value_of(tau) <= 0.0) {
+        lagged_velocity_ = v;
+        lag_started_ = true;
+      } else if (!lag_started_) {
+        lagged_velocity_ = v + initial_lag_offset_;
+        lag_started_ = true;
+      } else if (dt > 0.0 && c.piece_velocity_at_instant) {
+        const T slope_tau = (v - previous_piece_velocity_) * tau / c.dt;
+        lagged_velocity_ = v - slope_tau + (lagged_velocity_ - previous_piece_velocity_ +
+                                            slope_tau) * lag_decay(c.dt, tau);
+      } else if (dt > 0.0) {
+        lagged_velocity_ = v + (lagged_velocity_ - v) * lag_decay(c.dt, tau);
+      }
+      previous_piece_velocity_ = v;
+      v = lagged_velocity_;
+    }
+    if (p_.stribeck) {
+      const auto& s = *p_.stribeck;
+      here = T(1) + (s.static_force / f0_ - T(1)) *
+                        stribeck_weight(v, s.stribeck_velocity, s.stribeck_exponent);
+    }
+    if constexpr (std::is_same_v<T, double>) {
+      if (stage_record_lagged_) {
+        stage_record_lagged_->push_back(v);
+        stage_record_factor_->push_back(here);
+      }
+    }
+  }
+
+  // The velocity stage of the next step from a replay (replay_velocity_stage): v and the factor,
+  // with the lag's state as the step would have left it.  False: none (left to compute).
+  bool replayed_velocity_stage(const ExtendedMotion<T>& c, T& v, T& here) noexcept {
+    if constexpr (std::is_same_v<T, double>) {
+      if (stage_step_ < stage_replay_lagged_.size()) {
+        v = stage_replay_lagged_[stage_step_];
+        here = stage_replay_factor_[stage_step_];
+        ++stage_step_;
+        if (p_.frictional_lag) {
+          lagged_velocity_ = v;
+          lag_started_ = true;
+          previous_piece_velocity_ = c.piece_velocity;
+        }
+        return true;
+      }
+    }
+    return false;
+  }
+
   // exp(-dt / tau) of the frictional lag over an interval dt.  The pieces are fixed for the
   // object's life (constructor) and a record's dt carries no derivative (motion.hpp), so the factor
   // is a function of dt's value alone: it is kept for the last dt, which on a uniformly sampled
@@ -655,6 +716,11 @@ class Extended {
   T f0_{0};
   double lag_decay_dt_ = std::numeric_limits<double>::quiet_NaN();  // dt of lag_decay_
   T lag_decay_{0};
+  // The velocity stage recorded or replayed (record_velocity_stage, replay_velocity_stage).
+  std::vector<double>* stage_record_lagged_ = nullptr;
+  std::vector<double>* stage_record_factor_ = nullptr;
+  std::span<const double> stage_replay_lagged_, stage_replay_factor_;
+  std::size_t stage_step_ = 0;
   // Extension states.
   T lagged_velocity_{0};
   bool lag_started_ = false;
