@@ -273,9 +273,14 @@ std::optional<std::vector<double>> without_dictionary_viscous(std::span<const do
   return out;
 }
 
+// The parameters BIC counts for a joint fit of M operators with these pieces (its state is not
+// counted).
+std::size_t fit_parameters(std::size_t operators, const ExtensionParameters<double>& ext) {
+  return 2 * operators + ext.parameter_count();
+}
+
 double fit_bic(const Record& r, const ExtendedSlipFit& f) {
-  return bayesian_information_criterion(f.rss, r.size(),
-                                        2 * f.base.size() + f.ext.parameter_count());
+  return bayesian_information_criterion(f.rss, r.size(), fit_parameters(f.base.size(), f.ext));
 }
 
 // NLR with `operators` (0: its order selection) on the force without the pieces of `cur`, then
@@ -342,16 +347,16 @@ std::optional<ExtendedSlipFit> fit_from_nlr(const Record& r, const ExtendedSlipF
   // them to NLR's order selection.
   std::vector<std::optional<ExtendedSlipFit>> fits(branches.size());
   // A joint fit from NLR's base is of use only when its BIC ends below that of `cur` (every
-  // caller keeps it only then): with M operators, at an RSS below cur.rss exp((p_cur - p) ln N /
-  // N).  One that at its pace cannot get there in its budget is stopped (header comment, 1).
+  // caller keeps it only then): with p parameters, at an RSS below the one whose BIC is cur's,
+  // N exp((BIC_cur - p ln N) / N).  One that at its pace cannot get there in its budget is
+  // stopped (header comment, 1).
   const auto joint_fit = [&](const MaxwellSlipParameters<double>& base,
                              const std::vector<double>& rho) {
-    const double n_samples = static_cast<double>(r.size());
-    const double p_cur = static_cast<double>(2 * cur.base.size() + cur.ext.parameter_count());
-    const double p = static_cast<double>(2 * base.size() + cur.ext.parameter_count());
+    const double samples = static_cast<double>(r.size());
+    const double p = static_cast<double>(fit_parameters(base.size(), cur.ext));
     const double target =
         cur.ok && std::isfinite(cur.rss)
-            ? cur.rss * std::exp((p_cur - p) * std::log(n_samples) / n_samples)
+            ? samples * std::exp((fit_bic(r, cur) - p * std::log(samples)) / samples)
             : std::numeric_limits<double>::infinity();
     return memo ? memo->fit(r, base, rho, cur.ext, o.max_iterations, target)
                 : fit_extended_slip_within_reach(r, base, rho, cur.ext, false, o.max_iterations,

@@ -38,8 +38,9 @@ class JointFitMemo {
   JointFitMemo& operator=(const JointFitMemo&) = delete;
 
   /// fit_extended_slip_within_reach(r, base, rho, ext, false, max_iterations, target_rss)
-  /// (extension_steps.hpp), made once for each distinct set of arguments while it is kept.  Safe to call from several threads; two threads asking for
-  /// the same new fit at once both make it (the same fit).  A fit that throws is not remembered.
+  /// (extension_steps.hpp), made once for each distinct set of arguments while it is kept.  Safe
+  /// to call from several threads; two threads asking for the same new fit at once both make it
+  /// (the same fit).  A fit that throws is not remembered.
   ExtendedSlipFit fit(const Record& r, const MaxwellSlipParameters<double>& base,
                       const std::vector<double>& rho, const ExtensionParameters<double>& ext,
                       int max_iterations, double target_rss) {
@@ -67,8 +68,9 @@ class JointFitMemo {
   }
 
  private:
-  // Every argument as bits: the iteration cap, the target, the base, the state, and each piece present with
-  // its effect and every parameter in the pieces' own order, then the reference force.
+  // Every argument as bits: the iteration cap, the target, the base, the state, and each piece
+  // present with its effect and every parameter in the pieces' own order, then the reference
+  // force.
   static std::vector<std::uint64_t> key_of(const MaxwellSlipParameters<double>& base,
                                            const std::vector<double>& rho,
                                            const ExtensionParameters<double>& ext,

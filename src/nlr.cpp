@@ -461,16 +461,16 @@ std::vector<double> start_rho(const Data& d, const std::vector<double>& thr) {
   return rho;
 }
 
-// `target` [RSS/SSS %]: the lowest cost already known to be reachable (detail::HopelessSearch, bounded_solver.hpp); infinity
-// disables the stop.
+// `target` [RSS/SSS %]: the lowest cost already known to be reachable (detail::HopelessSearch,
+// bounded_solver.hpp); infinity disables the stop.
 Fit local_search(const Data& d, std::vector<double> s, std::vector<double> rho, const NlrOptions& o,
                  double target = std::numeric_limits<double>::infinity()) {
   const int m = static_cast<int>(s.size());
   for (double& v : s) v = std::clamp(v, 0.0, 1.0);
   Fit fit;
   const double n = static_cast<double>(d.y.size());
-  detail::HopelessSearch hopeless(target * (1.0 + o.stall_tolerance) * n / 200.0, 0.5 * d.sigma2,
-                          o.max_iterations);
+  detail::HopelessSearch hopeless(target * (1.0 + o.stall_tolerance) * n / 200.0,
+                                  0.5 * d.sigma2, o.max_iterations);
   ceres::Solver::Options so = solver_options(o, d.x.size());
   std::vector<double> logk;
   ceres::Solver::Summary summary;

@@ -43,22 +43,40 @@ void expect_same_fit(const ExtendedSlipFit& a, const ExtendedSlipFit& b, const s
   EXPECT_EQ(a.at_bound, b.at_bound) << what;
 }
 
-TEST(JointFitMemo, AFitAskedAgainIsTheFitMadeAndAnyChangedBitMakesANewOne) {
+// A record of the support system (4 operators) with a viscous term and an offset, and a start
+// off its truth: the operators' stiffnesses and initial states moved, thresholds `thresholds`,
+// the pieces at `viscous` and `offset`.
+struct Problem {
+  Record r;
+  MaxwellSlipParameters<double> base;
+  std::vector<double> rho{0.1, -0.2, 0.0, 0.3};
+  ExtensionParameters<double> ext;
+};
+
+Problem off_truth(std::uint64_t seed, std::vector<double> thresholds, double viscous,
+                  double offset) {
   Excitation ex;
   const std::vector<Injection> effects{{Injected::viscous, 40.0}, {Injected::offset, 0.05}};
-  const Record r = testing::with_noise(testing::make_clean(effects, ex, 1500, 0.0), 2e-3, 21);
-  const Record other = testing::with_noise(testing::make_clean(effects, ex, 1500, 0.0), 2e-3, 22);
-  // A start off the truth (the support system's 4 operators, each moved), so the fits iterate.
-  MaxwellSlipParameters<double> base;
-  base.stiffness = {3.6e4, 3.3e4, 1.7e4, 1.2e4};
-  base.threshold = {1.2e-6, 2.6e-6, 8e-6, 1.4e-5};
-  const std::vector<double> rho{0.1, -0.2, 0.0, 0.3};
-  ExtensionParameters<double> ext;
-  ext.reference_force = base.sliding_force();
-  ext.viscous.emplace();
-  ext.viscous->viscous = 25.0;
-  ext.offset.emplace();
-  ext.offset->offset = 0.01;
+  Problem p;
+  p.r = testing::with_noise(testing::make_clean(effects, ex, 1500, 0.0), 2e-3, seed);
+  p.base.stiffness = {3.6e4, 3.3e4, 1.7e4, 1.2e4};
+  p.base.threshold = std::move(thresholds);
+  p.ext.reference_force = p.base.sliding_force();
+  p.ext.viscous.emplace();
+  p.ext.viscous->viscous = viscous;
+  p.ext.offset.emplace();
+  p.ext.offset->offset = offset;
+  return p;
+}
+
+TEST(JointFitMemo, AFitAskedAgainIsTheFitMadeAndAnyChangedBitMakesANewOne) {
+  // A start off the truth (each operator moved), so the fits iterate.
+  const Problem p = off_truth(21, {1.2e-6, 2.6e-6, 8e-6, 1.4e-5}, 25.0, 0.01);
+  const Record& r = p.r;
+  const Record other = off_truth(22, p.base.threshold, 25.0, 0.01).r;
+  const MaxwellSlipParameters<double>& base = p.base;
+  const std::vector<double>& rho = p.rho;
+  const ExtensionParameters<double>& ext = p.ext;
   const int iterations = 20;
   const double anywhere = std::numeric_limits<double>::infinity();  // no target: any RSS serves
 
@@ -117,23 +135,14 @@ TEST(JointFitMemo, AFitAskedAgainIsTheFitMadeAndAnyChangedBitMakesANewOne) {
   EXPECT_EQ(memo.made(), made + 1);
 }
 
-
 TEST(JointFitMemo, AFitThatCannotReachItsTargetStopsEarlyAndOneThatReachesItIsTheWholeFit) {
-  Excitation ex;
-  const std::vector<Injection> effects{{Injected::viscous, 40.0}, {Injected::offset, 0.05}};
-  const Record r = testing::with_noise(testing::make_clean(effects, ex, 1500, 0.0), 2e-3, 23);
-  // Far off the truth (thresholds 10 times too large, no viscous term yet), so that the fit takes
-  // more iterations than the stop's window of 10.
-  MaxwellSlipParameters<double> base;
-  base.stiffness = {3.6e4, 3.3e4, 1.7e4, 1.2e4};
-  base.threshold = {1.2e-5, 2.6e-5, 8e-5, 1.4e-4};
-  const std::vector<double> rho{0.1, -0.2, 0.0, 0.3};
-  ExtensionParameters<double> ext;
-  ext.reference_force = base.sliding_force();
-  ext.viscous.emplace();
-  ext.viscous->viscous = 0.0;
-  ext.offset.emplace();
-  ext.offset->offset = 0.0;
+  // Far off the truth (thresholds 10 times too large, no viscous term or offset yet), so that the
+  // fit takes more iterations than the stop's window of 10.
+  const Problem p = off_truth(23, {1.2e-5, 2.6e-5, 8e-5, 1.4e-4}, 0.0, 0.0);
+  const Record& r = p.r;
+  const MaxwellSlipParameters<double>& base = p.base;
+  const std::vector<double>& rho = p.rho;
+  const ExtensionParameters<double>& ext = p.ext;
   const int iterations = 60;
   const ExtendedSlipFit whole = fit_extended_slip(r, base, rho, ext, false, iterations);
   ASSERT_TRUE(whole.ok);
