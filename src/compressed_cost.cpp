@@ -5,7 +5,9 @@
 #include <Eigen/QR>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 
 #include "friction/error.hpp"
 
@@ -115,10 +117,14 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
   residuals_.resize(static_cast<std::size_t>(n));
   Eigen::Map<Eigen::VectorXd> out(residuals, rows);
   if (!jacobians) {
-    if (!inner_->Evaluate(parameters, residuals_.data(), nullptr)) return false;
     out.setZero();
-    out(rows - 1) = Eigen::Map<const Eigen::VectorXd>(residuals_.data(), n).norm();
-    return std::isfinite(out(rows - 1));
+    if (!same_as_last_value_point(parameters)) {
+      last_value_ok_ = inner_->Evaluate(parameters, residuals_.data(), nullptr);
+      last_value_norm_ =
+          last_value_ok_ ? Eigen::Map<const Eigen::VectorXd>(residuals_.data(), n).norm() : 0.0;
+    }
+    out(rows - 1) = last_value_norm_;
+    return last_value_ok_ && std::isfinite(last_value_norm_);
   }
   const auto& sizes = inner_->parameter_block_sizes();
   Eigen::Index p = 0;  // the requested columns
@@ -143,6 +149,24 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
     c += sizes[b];
   }
   return true;
+}
+
+bool CompressedCost::same_as_last_value_point(double const* const* parameters) const {
+  const auto& sizes = inner_->parameter_block_sizes();
+  bool same = !last_value_point_.empty();
+  std::size_t k = 0;
+  for (std::size_t b = 0; b < sizes.size(); ++b)
+    for (int i = 0; i < sizes[b]; ++i, ++k) {
+      if (k == last_value_point_.size()) {
+        last_value_point_.push_back(parameters[b][i]);
+        same = false;
+      } else if (std::bit_cast<std::uint64_t>(last_value_point_[k]) !=
+                 std::bit_cast<std::uint64_t>(parameters[b][i])) {
+        last_value_point_[k] = parameters[b][i];
+        same = false;
+      }
+    }
+  return same;
 }
 
 bool CompressedCost::add_rows_streamed(double const* const* parameters,

@@ -112,8 +112,18 @@ class CompressedCost final : public ceres::CostFunction {
   bool add_rows_streamed(double const* const* parameters, double** jacobians) const;
   bool add_rows_whole(double const* const* parameters, double** jacobians) const;
 
+  // Whether `parameters` are, bit for bit, those of the last evaluation of values alone; records
+  // them when not.
+  bool same_as_last_value_point(double const* const* parameters) const;
+
   std::unique_ptr<ceres::CostFunction> inner_;
   const RowStreamingCost* streaming_ = nullptr;  // inner_ itself when it streams its rows
+  // The last evaluation of values alone (point, RSS root, success).  Ceres' bounded trust region
+  // evaluates each step twice at the same point: its projected line search tries step 1 first,
+  // and the minimiser then evaluates the candidate it accepted, x + 1 x delta, again.
+  mutable std::vector<double> last_value_point_;
+  mutable double last_value_norm_ = 0.0;
+  mutable bool last_value_ok_ = false;
   mutable std::vector<double> residuals_;
   mutable std::vector<std::vector<double>> jacobians_;
   mutable Eigen::MatrixXd gram_, factor_;

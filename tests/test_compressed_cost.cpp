@@ -175,6 +175,72 @@ TEST(CompressedCost, RowsHandedOverOneByOneGiveTheSameNumbers) {
   }
 }
 
+// The oscillation cost counting its evaluations of values alone.
+class CountedOscillation final : public ceres::CostFunction {
+ public:
+  CountedOscillation(const Oscillation& data, int* values)
+      : inner_(oscillation_cost(data)), values_(values) {
+    *mutable_parameter_block_sizes() = inner_->parameter_block_sizes();
+    set_num_residuals(inner_->num_residuals());
+  }
+  bool Evaluate(double const* const* p, double* r, double** j) const override {
+    if (!j) ++*values_;
+    return inner_->Evaluate(p, r, j);
+  }
+
+ private:
+  std::unique_ptr<ceres::CostFunction> inner_;
+  int* values_;
+};
+
+// Ceres' bounded trust region evaluates the values at each accepted point twice (its line search
+// at step 1, then the candidate); the second is answered from the first.  An answer kept for a
+// point that has since changed in any one coordinate, or after a Jacobian, would be a wrong cost.
+TEST(CompressedCost, ValuesAtTheSamePointAreEvaluatedOnce) {
+  const Oscillation data = make_data(90210u, 700);
+  int values = 0;
+  const CompressedCost cached(new CountedOscillation(data, &values));
+  std::vector<double> a{1.7, 0.25}, b{3.05, 0.3, 0.1};
+  const double* p[] = {a.data(), b.data()};
+  const auto fresh = [&] {  // a new cost at the current point, nothing kept
+    int unused = 0;
+    const CompressedCost c(new CountedOscillation(data, &unused));
+    std::vector<double> r(6);
+    EXPECT_TRUE(c.Evaluate(p, r.data(), nullptr));
+    return r;
+  };
+  const auto value = [&] {
+    std::vector<double> r(6, -1.0);
+    EXPECT_TRUE(cached.Evaluate(p, r.data(), nullptr));
+    return r;
+  };
+  const std::vector<double> at_start = fresh();
+  EXPECT_EQ(value(), at_start);
+  EXPECT_EQ(value(), at_start);
+  EXPECT_EQ(values, 1);
+  for (double* x : {&a[0], &a[1], &b[0], &b[1], &b[2]}) {  // each coordinate moved alone
+    const double kept = *x;
+    *x = kept * (1.0 + 1e-9);
+    const std::vector<double> moved = fresh();
+    EXPECT_NE(moved, at_start);
+    EXPECT_EQ(value(), moved);
+    *x = kept;
+    EXPECT_EQ(value(), at_start);
+  }
+  EXPECT_EQ(values, 11);
+  // A Jacobian in between leaves the values at the point as they were.
+  std::vector<double> r(6), ja(6 * 2), jb(6 * 3);
+  double* j[] = {ja.data(), jb.data()};
+  ASSERT_TRUE(cached.Evaluate(p, r.data(), j));
+  EXPECT_EQ(value(), at_start);
+  // A whole bounded solve takes the same steps to the same point with it as without it.
+  for (bool hold : {false, true}) {
+    const Solved small = solve(data, true, hold), whole = solve(data, false, hold);
+    EXPECT_EQ(small.summary.num_successful_steps, whole.summary.num_successful_steps);
+    EXPECT_EQ(small.summary.num_unsuccessful_steps, whole.summary.num_unsuccessful_steps);
+  }
+}
+
 // The accumulator leaves out of a block's product the columns that are zero on all its rows (an
 // operator's initial state is forgotten once it slips): columns zero from some row on, zero until
 // some row, zero in the middle, everywhere, and never, across block edges (256 rows), each entry
