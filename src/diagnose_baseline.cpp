@@ -59,45 +59,66 @@ std::vector<double> slip_force(const State& s, std::span<const double> initial, 
   return out;
 }
 
-// Replicas of the sensor floor.  Its relative sampling error is about sqrt(2 / 8) = 0.5 for a
-// floor made by a few stiff operators at a few reversals, less where many samples contribute: a
-// floor, unlike a standard error, only needs its order of magnitude.  The seeds are those of the
-// covariance's replicas (extension_families.hpp), whose windows the rule then need not choose
-// again for the estimation record.
-constexpr std::size_t kSensorReplicas = 8;
+// The record refined to four steps per sample (stepped_finely).  Made without a Record (no force,
+// no conditioning): at 10^6 samples the fine record and the whole runs on it (force, regime,
+// velocity, acceleration) were a quarter of the diagnosis's memory, and only the force at the
+// record's own samples is read.
+struct FineGrid {
+  static constexpr std::size_t kSteps = 4;
+  std::vector<double> time, x, normal;
+};
 
-}  // namespace
-
-std::vector<double> stepped_finely(const State& s, std::span<const double> initial,
-                                   const Record& r) {
-  // The grid is made without a Record (no force, no conditioning): at 10^6 samples the fine
-  // record and the whole runs on it (force, regime, velocity, acceleration) were a quarter of the
-  // diagnosis's memory, and only the force at the record's own samples is read.
-  const std::size_t n = r.size(), steps = 4;
+FineGrid fine_grid(const Record& r) {
+  const std::size_t n = r.size(), steps = FineGrid::kSteps;
   const std::size_t fine_n = steps * (n - 1) + 1;
-  std::vector<double> fine_time, fine_x, fine_normal;
-  fine_time.reserve(fine_n);
-  fine_x.reserve(fine_n);
-  if (!r.normal.empty()) fine_normal.reserve(fine_n);
+  FineGrid g;
+  g.time.reserve(fine_n);
+  g.x.reserve(fine_n);
+  if (!r.normal.empty()) g.normal.reserve(fine_n);
   for (std::size_t k = 0; k + 1 < n; ++k)
     for (std::size_t j = 0; j < steps; ++j) {
       const double w = static_cast<double>(j) / static_cast<double>(steps);
       const double t = r.time[k] + w * (r.time[k + 1] - r.time[k]);
-      fine_time.push_back(t);
-      fine_x.push_back(interpolate_displacement(std::span<const double>(r.time),
-                                                std::span<const double>(r.displacement), k, t));
-      if (!r.normal.empty()) fine_normal.push_back((1 - w) * r.normal[k] + w * r.normal[k + 1]);
+      g.time.push_back(t);
+      g.x.push_back(interpolate_displacement(std::span<const double>(r.time),
+                                             std::span<const double>(r.displacement), k, t));
+      if (!r.normal.empty()) g.normal.push_back((1 - w) * r.normal[k] + w * r.normal[k + 1]);
     }
-  fine_time.push_back(r.time.back());
-  fine_x.push_back(r.displacement.back());
-  if (!r.normal.empty()) fine_normal.push_back(r.normal.back());
+  g.time.push_back(r.time.back());
+  g.x.push_back(r.displacement.back());
+  if (!r.normal.empty()) g.normal.push_back(r.normal.back());
+  return g;
+}
+
+}  // namespace
+
+DerivativeWindows fine_grid_windows(const Record& r) {
+  if (r.size() < 2) return record_derivative_windows(r);
+  const FineGrid g = fine_grid(r);
+  return record_derivative_windows(std::span<const double>(g.time), std::span<const double>(g.x));
+}
+
+void warm_sensor_replica(const Record& r, std::size_t j) {
+  if (r.size() < 8) return;
+  Record replica;
+  remeasured_replica(r, 0x9e3779b97f4a7c15ULL * (j + 1), replica,
+                     estimate_displacement_resolution(r.measured()), nullptr);
+}
+
+std::vector<double> stepped_finely(const State& s, std::span<const double> initial,
+                                   const Record& r, const DerivativeWindows* fine_windows) {
+  const std::size_t n = r.size(), steps = FineGrid::kSteps;
+  const FineGrid g = fine_grid(r);
+  const std::vector<double>& fine_time = g.time;
+  const std::vector<double>& fine_x = g.x;
+  const std::vector<double>& fine_normal = g.normal;
   Extended<MaxwellSlip<double>> model(MaxwellSlip<double>(s.base), s.ext, 2);
   set_extended_slip_state(model, initial);
   std::vector<double> out(n);
   const detail::UncachedSteps uncached;  // the filter of the fine grid is not asked for again
   for_each_extended_step(
       model, std::span<const double>(fine_time), std::span<const double>(fine_x),
-      std::span<const double>(fine_normal), nullptr,
+      std::span<const double>(fine_normal), fine_windows,
       [&](std::size_t k, const ExtendedMotion<double>&, double force) {
         if (k % steps == 0) out[k / steps] = force;
       },
@@ -106,7 +127,8 @@ std::vector<double> stepped_finely(const State& s, std::span<const double> initi
 }
 
 double measurement_floor_rss(const State& s, const std::vector<double>& rho, const Record& r,
-                             const DerivativeWindows& w, unsigned threads) {
+                             const DerivativeWindows& w, unsigned threads,
+                             const DerivativeWindows* fine_windows) {
   if (r.size() < 8 || s.base.size() == 0) return 0.0;
   const std::vector<double> initial = deflections_from_relative(s.base, rho, s.ext);
   const std::vector<double> own = slip_force(s, initial, r, w);
@@ -125,7 +147,7 @@ double measurement_floor_rss(const State& s, const std::vector<double>& rho, con
   for (std::size_t j = 0; j < kSensorReplicas; ++j) order.push_back(j);
   detail::parallel_for(kSensorReplicas + 1, threads, [&](std::size_t j) {
     if (j == kSensorReplicas) {
-      stepping_part = squared_change(stepped_finely(s, initial, r));
+      stepping_part = squared_change(stepped_finely(s, initial, r, fine_windows));
       return;
     }
     Record replica;

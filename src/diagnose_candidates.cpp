@@ -226,7 +226,7 @@ double stepping_shift(const Context& c, const State& s) {
   if (n < 8) return 0.0;
   const std::vector<double> initial = deflections_from_relative(s.base, s.rho, s.ext);
   const std::vector<double> coarse = run_extended_slip(s.base, s.ext, initial, r).force;
-  const std::vector<double> refined = stepped_finely(s, initial, r);
+  const std::vector<double> refined = stepped_finely(s, initial, r, c.fine_windows_est);
   double num = 0, den = 0;
   for (std::size_t k = 1; k + 1 < n; ++k) {
     const double slope = (coarse[k + 1] - coarse[k - 1]) / (r.time[k + 1] - r.time[k - 1]);

@@ -71,6 +71,8 @@ struct Context {
   double position_origin = 0;
   /// The restarts' joint fits on `est`, remembered for the final polish (joint_fit_memo.hpp).
   extension_detail::JointFitMemo* joint_fits = nullptr;
+  /// The derivative windows of `est` refined as stepped_finely refines it.
+  const DerivativeWindows* fine_windows_est = nullptr;
 
   /// The validation floor with the displacement's sampling in it: a model validating at or below
   /// it leaves nothing for a piece to explain, so no candidate on it passes rule (c).
@@ -97,16 +99,35 @@ Baseline fit_baseline(const Record& est, const Record& val, const DiagnoseOption
 /// floors): its sensor's error, the mean over replicas of the record remeasured by its own sensor
 /// (remeasured_replica; nothing when the sensor has neither a quantum nor noise) of the sum of
 /// squared changes of the model's force, plus its stepping once per sample, the sum of squared
-/// differences between the force stepped per sample and stepped_finely.  The replicas run on
-/// `threads` threads; the result does not depend on it.
+/// differences between the force stepped per sample and stepped_finely (`fine_windows`: as
+/// there).  The replicas run on `threads` threads; the result does not depend on it.
 double measurement_floor_rss(const State& s, const std::vector<double>& rho, const Record& r,
-                             const DerivativeWindows& w, unsigned threads);
+                             const DerivativeWindows& w, unsigned threads,
+                             const DerivativeWindows* fine_windows = nullptr);
 
 /// The model of `s` from the deflections `initial` run on the record refined to four steps per
 /// sample (displacement by interpolate_displacement, normal force linearly), its force at the
-/// record's samples: the model as stepping once per sample does not see it.
+/// record's samples: the model as stepping once per sample does not see it.  `fine_windows`: the
+/// refined record's derivative windows (fine_grid_windows) when the caller has them; chosen for
+/// it otherwise.
 std::vector<double> stepped_finely(const State& s, std::span<const double> initial,
-                                   const Record& r);
+                                   const Record& r,
+                                   const DerivativeWindows* fine_windows = nullptr);
+
+/// The derivative windows of the record refined as stepped_finely refines it.
+DerivativeWindows fine_grid_windows(const Record& r);
+
+/// Replica j of the sensor floor (measurement_floor_rss) made once, so that remeasured_replica
+/// remembers its derivative windows: they depend on the record alone, and the rule that chooses
+/// them was most of the floors' time.
+void warm_sensor_replica(const Record& r, std::size_t j);
+
+// Replicas of the sensor floor.  Its relative sampling error is about sqrt(2 / 8) = 0.5 for a
+// floor made by a few stiff operators at a few reversals, less where many samples contribute: a
+// floor, unlike a standard error, only needs its order of magnitude.  The seeds are those of the
+// covariance's replicas (extension_families.hpp), whose windows the rule then need not choose
+// again for the estimation record.
+inline constexpr std::size_t kSensorReplicas = 8;
 
 /// A LuGre baseline: LG, its validation, and its one candidate (Maxwell Slip elements, from the
 /// NLR baseline).  Fills the baseline part of `dx` and its first round; returns the finding when

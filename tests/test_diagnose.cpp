@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "../src/diagnose_stages.hpp"
 #include "diagnose_support.hpp"
 #include "friction/diagnose.hpp"
 #include "support/cli_runner.hpp"
@@ -188,6 +189,37 @@ TEST(Diagnose, TheSameDiagnosisOnOneThreadAndOnSeveral) {
   drop_timings(a);
   drop_timings(b);
   EXPECT_EQ(a.dump(), b.dump());
+}
+
+// The refined grid's windows that diagnose() chooses beside the baseline's fit, ahead of the
+// floors, are the ones stepped_finely would choose for itself: the same force, bit for bit, and
+// the same floor.  Windows chosen for the record instead would give another force (the test
+// would see a mix-up of the two).
+TEST(DiagnoseFloors, TheRefinedGridsWindowsMadeAheadGiveTheSameSteppedForce) {
+  Excitation ex;
+  Record r = with_noise(make_clean(Injected::viscous, 40.0, ex, 1500, 0.0), 2e-3, 31);
+  for (double& x : r.displacement) x = 2e-8 * std::round(x / 2e-8);  // an encoder's staircase
+  diagnose_detail::State s;
+  s.base = truth_parameters();
+  s.rho.assign(s.base.size(), 0.1);
+  s.ext.reference_force = s.base.sliding_force();
+  s.ext.enable(Effect::viscous);
+  s.ext.viscous->viscous = 40.0;
+  s.ext.enable(Effect::inertia);
+  s.ext.inertia->mass = 0.5;
+  const std::vector<double> initial = deflections_from_relative(s.base, s.rho, s.ext);
+  const std::vector<double> chosen_there = diagnose_detail::stepped_finely(s, initial, r);
+  const DerivativeWindows ahead = diagnose_detail::fine_grid_windows(r);
+  EXPECT_EQ(diagnose_detail::stepped_finely(s, initial, r, &ahead), chosen_there);
+  const DerivativeWindows record_windows = record_derivative_windows(r);
+  ASSERT_NE(record_windows, ahead);
+  EXPECT_NE(diagnose_detail::stepped_finely(s, initial, r, &record_windows), chosen_there);
+  for (std::size_t j = 0; j < diagnose_detail::kSensorReplicas; ++j)
+    diagnose_detail::warm_sensor_replica(r, j);
+  const double floor_there = diagnose_detail::measurement_floor_rss(s, s.rho, r, record_windows, 2);
+  EXPECT_GT(floor_there, 0.0);
+  EXPECT_EQ(diagnose_detail::measurement_floor_rss(s, s.rho, r, record_windows, 1, &ahead),
+            floor_there);
 }
 
 // A LuGre baseline on a multi-element Maxwell Slip record: the single state misses the nonlocal
