@@ -125,8 +125,8 @@ void warm_sensor_replica(const Record& r, std::size_t j);
 // Replicas of the sensor floor.  Its relative sampling error is about sqrt(2 / 8) = 0.5 for a
 // floor made by a few stiff operators at a few reversals, less where many samples contribute: a
 // floor, unlike a standard error, only needs its order of magnitude.  The seeds are those of the
-// covariance's replicas (extension_families.hpp), whose windows the rule then need not choose
-// again for the estimation record.
+// covariance's replicas (extension_families.hpp); with an encoder those are made from the
+// smoothest motion within its quanta, not from the record, so their windows are chosen again.
 inline constexpr std::size_t kSensorReplicas = 8;
 
 /// A LuGre baseline: LG, its validation, and its one candidate (Maxwell Slip elements, from the
