@@ -119,9 +119,14 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
   if (!jacobians) {
     out.setZero();
     if (!same_as_last_value_point(parameters)) {
+      // Forgotten first: an evaluation that throws leaves no answer behind for its point.
+      last_value_point_.clear();
       last_value_ok_ = inner_->Evaluate(parameters, residuals_.data(), nullptr);
       last_value_norm_ =
           last_value_ok_ ? Eigen::Map<const Eigen::VectorXd>(residuals_.data(), n).norm() : 0.0;
+      const auto& sizes = inner_->parameter_block_sizes();
+      for (std::size_t b = 0; b < sizes.size(); ++b)
+        last_value_point_.insert(last_value_point_.end(), parameters[b], parameters[b] + sizes[b]);
     }
     out(rows - 1) = last_value_norm_;
     return last_value_ok_ && std::isfinite(last_value_norm_);
@@ -152,21 +157,15 @@ bool CompressedCost::Evaluate(double const* const* parameters, double* residuals
 }
 
 bool CompressedCost::same_as_last_value_point(double const* const* parameters) const {
+  if (last_value_point_.empty()) return false;
   const auto& sizes = inner_->parameter_block_sizes();
-  bool same = !last_value_point_.empty();
   std::size_t k = 0;
   for (std::size_t b = 0; b < sizes.size(); ++b)
-    for (int i = 0; i < sizes[b]; ++i, ++k) {
-      if (k == last_value_point_.size()) {
-        last_value_point_.push_back(parameters[b][i]);
-        same = false;
-      } else if (std::bit_cast<std::uint64_t>(last_value_point_[k]) !=
-                 std::bit_cast<std::uint64_t>(parameters[b][i])) {
-        last_value_point_[k] = parameters[b][i];
-        same = false;
-      }
-    }
-  return same;
+    for (int i = 0; i < sizes[b]; ++i, ++k)
+      if (std::bit_cast<std::uint64_t>(last_value_point_[k]) !=
+          std::bit_cast<std::uint64_t>(parameters[b][i]))
+        return false;
+  return true;
 }
 
 bool CompressedCost::add_rows_streamed(double const* const* parameters,

@@ -112,8 +112,7 @@ class CompressedCost final : public ceres::CostFunction {
   bool add_rows_streamed(double const* const* parameters, double** jacobians) const;
   bool add_rows_whole(double const* const* parameters, double** jacobians) const;
 
-  // Whether `parameters` are, bit for bit, those of the last evaluation of values alone; records
-  // them when not.
+  // Whether `parameters` are, bit for bit, those of the last evaluation of values alone.
   bool same_as_last_value_point(double const* const* parameters) const;
 
   std::unique_ptr<ceres::CostFunction> inner_;
