@@ -391,6 +391,15 @@ Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double
   v.drop = rss0 - rss1;
   v.operator_limited =
       reference > 0.0 && v.required == reference && v.drop > std::max(noise, share);
+  // The noise's RSS over N samples is N sigma^2 with standard deviation sqrt(2 N) sigma^2: a
+  // model within three of them of the estimation record's floor (the noise's, and what the
+  // displacement's sampling puts into its force) leaves nothing there that a drop could show to
+  // be an effect rather than the noise and the sampling, which a piece with a free parameter
+  // then fits instead (the judgement polish_final makes on the floor of the noise alone).
+  v.estimation_at_floor =
+      c.floor_rss > 0.0 &&
+      rss0 <= c.floor_rss * (1.0 + 3.0 * std::sqrt(2.0 / static_cast<double>(c.n))) +
+                  c.estimation_measurement_rss;
   v.validation_before = val0;
   v.validation_after = val1;
   // The required fall is a share of what lies above the force noise's floor; whether anything is

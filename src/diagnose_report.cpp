@@ -269,6 +269,9 @@ std::string Verdict::to_text() const {
     s << at_bound << " ended at the edge of its range (on its own the effect as defined does not "
       << "describe this record); ";
   if (!bic_falls()) s << "BIC does not fall (" << format_number(delta_bic, 3) << "); ";
+  if (estimation_at_floor)
+    s << "the estimation error is already within the noise's spread of the floor of the force "
+      << "noise and the displacement's sampling: nothing above it to explain; ";
   if (!drop_exceeds()) {
     s << "estimation drop " << format_number(drop, 3) << " N^2 below the required "
       << format_number(required, 3) << " N^2";
@@ -486,13 +489,14 @@ std::string Diagnosis::to_table() const {
   if (!first_round.empty()) {
     s << "Candidates of the first round (estimation %, validation %, delta BIC, verdict):\n";
     for (const auto& c : first_round) {
-      char line[400];
+      // The columns in a buffer of their own: the verdict is as long as its reasons (a buffer
+      // for the whole line cut a long one, and its newline with it).
+      char columns[128];
       std::snprintf(
-          line, sizeof line, "  %-20s %10.4g %10.4g %10.4g %6.2fs  %s\n",
+          columns, sizeof columns, "  %-20s %10.4g %10.4g %10.4g %6.2fs  ",
           c.nonlocal_memory ? "nonlocal-memory" : std::string(effect_name(c.effect)).c_str(),
-          c.estimation_percent, c.validation_percent, c.delta_bic, c.seconds,
-          c.verdict.to_text().c_str());
-      s << line;
+          c.estimation_percent, c.validation_percent, c.delta_bic, c.seconds);
+      s << columns << c.verdict.to_text() << "\n";
     }
   }
   return s.str();

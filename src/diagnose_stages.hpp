@@ -61,6 +61,9 @@ struct Context {
   double f0ref = 0;            ///< F0 of the baseline: the level pieces' reference force [N]
   double operator_drop = 0;    ///< what one more operator drops the baseline's RSS by [N^2]
   double baseline_excess = 0;  ///< the baseline's RSS above the noise floor [N^2]
+  /// What the displacement's sampling puts into the baseline's force on `est`
+  /// (measurement_floor_rss) [N^2]: with floor_rss, the estimation record's floor.
+  double estimation_measurement_rss = 0;
   DerivativeWindows windows;   ///< the estimation record's (sample_derivatives.hpp)
   ProfileScales scales;        ///< the estimation record's, for the profiled starts
   double validation_floor_percent = 0;        ///< the validation record's noise floor, RSS/SSS %

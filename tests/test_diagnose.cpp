@@ -222,6 +222,57 @@ TEST(DiagnoseFloors, TheRefinedGridsWindowsMadeAheadGiveTheSameSteppedForce) {
             floor_there);
 }
 
+// Rule (b) at the estimation record's floor: with N = 4000 samples of unit noise, a floor of
+// 4000 and 200 more from the displacement's sampling, a model within three standard deviations of
+// the noise's RSS (sqrt(2 N) = 89.4 each) of that floor leaves nothing for a drop to show; one
+// above it, or at the same RSS without the sampling's part, does.
+TEST(DiagnoseRules, NoDropIsRealOnAModelAtTheEstimationRecordsFloor) {
+  const Record est, val;
+  const DiagnoseOptions o;
+  const auto context = [&](double sampling_rss) {
+    return diagnose_detail::Context{est,  val, o,   4000, 1.0, 4000.0, 1.0,     0.0,    0.0,
+                                    sampling_rss, {}, {}, 0.0,  0.0, 0.0,    nullptr, nullptr};
+  };
+  const double band = 3.0 * std::sqrt(2.0 * 4000.0);  // 268.3
+  const auto verdict = [&](const diagnose_detail::Context& c, double rss0) {
+    // A one-parameter piece taking the model to the noise floor: BIC falls, the drop passes the
+    // noise's and the share's parts; the validation falls too.
+    return diagnose_detail::accept(c, rss0, 4000.0, 1, 1.0, 0.5, 0.0);
+  };
+  const diagnose_detail::Context with_sampling = context(200.0);
+  const Verdict at = verdict(with_sampling, 4000.0 + 200.0 + band - 1.0);
+  EXPECT_TRUE(at.estimation_at_floor);
+  EXPECT_TRUE(at.bic_falls() && at.drop_exceeds());
+  EXPECT_FALSE(at.passes_estimation_rules());
+  EXPECT_FALSE(at.earns_place());
+  EXPECT_NE(at.to_text().find("nothing above it to explain"), std::string::npos) << at.to_text();
+  const Verdict above = verdict(with_sampling, 4000.0 + 200.0 + band + 1.0);
+  EXPECT_FALSE(above.estimation_at_floor);
+  EXPECT_TRUE(above.earns_place()) << above.to_text();
+  const Verdict without_sampling = verdict(context(0.0), 4000.0 + 200.0 + band - 1.0);
+  EXPECT_FALSE(without_sampling.estimation_at_floor);
+  EXPECT_TRUE(without_sampling.earns_place()) << without_sampling.to_text();
+}
+
+// The table keeps one line per candidate whatever its verdict's length.
+TEST(DiagnoseTable, EveryCandidateHasItsLine) {
+  Diagnosis d;
+  for (Effect e : {Effect::viscous, Effect::offset, Effect::inertia}) {
+    CandidateFit c;
+    c.effect = e;
+    c.verdict.at_bound = "a_parameter_with_a_long_name";
+    c.verdict.delta_bic = 12.0;
+    c.verdict.required = 1.0;
+    c.verdict.operator_limited = true;
+    c.verdict.estimation_at_floor = true;
+    d.first_round.push_back(c);
+  }
+  ASSERT_GT(d.first_round.front().verdict.to_text().size(), 400u);
+  const std::string table = d.to_table();
+  for (const char* name : {"\n  viscous ", "\n  offset ", "\n  inertia "})
+    EXPECT_NE(table.find(name), std::string::npos) << name << " in\n" << table;
+}
+
 // A LuGre baseline on a multi-element Maxwell Slip record: the single state misses the nonlocal
 // memory, and Maxwell Slip elements are the first finding.
 TEST(Diagnose, LuGreBaselineFindsNonlocalMemory) {
@@ -272,9 +323,11 @@ TEST(DiagnoseCli, JsonDocumentFollowsTheContract) {
 // A round on a model that validates at the floor accepts nothing (rule c), so the lag is not fitted
 // again on the round's Stribeck curve there: that fit, the slowest of a round, could only change
 // which of two turned-down lags the document shows.  The strokes bench record is such a record:
-// its baseline validates at the floor, and its Stribeck candidate passes the estimation rules,
-// which is what would start the lag on the curve.  The lag shown must be the one with its viscous
-// companion (lag time, viscous, the lag's initial offset: 3 numbers; on the curve it is 5).
+// its baseline validates at the floor, and so it also is on the estimation record, where its
+// Stribeck candidate is turned down by rule (b) (before that rule knew the estimation record's
+// floor, the curve passed rules a and b and was turned down at the validation floor).  The lag
+// shown must be the one with its viscous companion (lag time, viscous, the lag's initial offset:
+// 3 numbers; on the curve it is 5).
 TEST(DiagnoseCli, NoLagOnTheStribeckCurveWhereNothingIsLeftToExplain) {
   const std::string bench = std::string(FRICTION_SOURCE_DIR) + "/data/bench/strokes/";
   const auto res = run_cli("diagnose --data " + bench + "est.csv --validate " + bench +
@@ -290,9 +343,10 @@ TEST(DiagnoseCli, NoLagOnTheStribeckCurveWhereNothingIsLeftToExplain) {
     if (c["effect"] == "frictional-lag") lag = &c;
   }
   ASSERT_TRUE(stribeck && lag) << j["candidates"].dump(1);
-  // The precondition: the curve passed rules (a) and (b) and was turned down at the floor.
-  ASSERT_NE(stribeck->at("verdict").get<std::string>().find("already at the floor"),
-            std::string::npos)
+  // The precondition: the curve was turned down at the floor, on either record.
+  const std::string why = stribeck->at("verdict").get<std::string>();
+  ASSERT_TRUE(why.find("already at the floor") != std::string::npos ||
+              why.find("nothing above it to explain") != std::string::npos)
       << stribeck->dump(1);
   EXPECT_EQ(lag->at("extra_parameters"), 3) << lag->dump(1);
 }

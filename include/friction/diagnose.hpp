@@ -61,7 +61,16 @@
 //          measured on the baseline; once pieces are accepted it is scaled by the share of the
 //          baseline's misfit (RSS above the floor) that is left, i.e. one more operator is taken
 //          to remove the same share of what remains (unscaled, a normal-load piece that removed
-//          99 % of the misfit left a real viscous term below the baseline's figure);
+//          99 % of the misfit left a real viscous term below the baseline's figure).  No drop
+//          is real on a model whose RSS0 is within three standard deviations of the noise's RSS
+//          (sqrt(2 N) sigma^2 each) of the estimation record's floor, N sigma^2 plus what the
+//          displacement's sampling puts into the baseline's force there (the measurement floor
+//          of (c) below, on the estimation record): nothing is left there for a piece to explain
+//          that the noise and the sampling would not, and a piece with a free parameter fits
+//          them instead.  Without it, an offset (z = 3.3) entered on a LuGre-study record whose
+//          NLR model sat 1.5 standard deviations above that floor, validating 5 % better (discovery
+//          study seed 3827228095007739670, nonlocal-memory-6), and a position term on a no-effect
+//          record of the main study (seed 990001, none-01);
 //      (c) it lowers the validation error (RSS/SSS % on the validation record, initial state
 //          estimated there) by at least the share of rule (b) of what lies above that record's
 //          noise floor: the gain must hold on the record the fit did not see in the measure it
@@ -288,6 +297,9 @@ struct Verdict {
   /// beside it runs to an edge; diagnose.cpp, forward_pass).
   std::string at_bound;
   bool operator_limited = false;  ///< (b) failed only on what one more operator buys
+  /// (b) the current model's estimation RSS is within the force noise's spread of the record's
+  /// floor (noise and the displacement's sampling): nothing above it for any drop to be real.
+  bool estimation_at_floor = false;
   Validation validation = Validation::not_evaluated;
   double validation_before = 0;    ///< RSS/SSS % of the current model (rule c)
   double validation_after = 0;     ///< RSS/SSS % of the candidate (rule c)
@@ -298,7 +310,9 @@ struct Verdict {
   bool bic_falls() const { return delta_bic < 0; }
   bool drop_exceeds() const { return drop > required; }
   /// Rules (a) and (b): the validation record may be consulted.
-  bool passes_estimation_rules() const { return fitted && bic_falls() && drop_exceeds(); }
+  bool passes_estimation_rules() const {
+    return fitted && bic_falls() && drop_exceeds() && !estimation_at_floor;
+  }
   /// All three rules and the nesting checks, whatever the edges.
   bool earns_place_but_for_an_edge() const {
     return passes_estimation_rules() && validation == Validation::falls && nested == Nested::none;
