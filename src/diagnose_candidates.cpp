@@ -396,10 +396,7 @@ Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double
   // displacement's sampling puts into its force) leaves nothing there that a drop could show to
   // be an effect rather than the noise and the sampling, which a piece with a free parameter
   // then fits instead (the judgement polish_final makes on the floor of the noise alone).
-  v.estimation_at_floor =
-      c.floor_rss > 0.0 &&
-      rss0 <= c.floor_rss * (1.0 + 3.0 * std::sqrt(2.0 / static_cast<double>(c.n))) +
-                  c.estimation_measurement_rss;
+  v.estimation_at_floor = c.estimation_at_floor(rss0);
   v.validation_before = val0;
   v.validation_after = val1;
   // The required fall is a share of what lies above the force noise's floor; whether anything is
@@ -479,8 +476,13 @@ Chain forward_pass(const Context& c, const State& start, const std::vector<Effec
   std::vector<Effect> live = pool;
   for (;;) {
     while (chain.states.back().order.size() < c.options.max_findings) {
+      // A round on a model at the estimation record's floor turns every candidate down (rule b),
+      // whatever its fit: only the first round's fits are shown, so a later one is not fitted.
+      // (On the discovery study's records the last round after the last finding often is one.)
+      const bool shown = chain.rounds.empty() && first_round.empty();
+      if (!shown && c.estimation_at_floor(chain.states.back().rss)) break;
       std::vector<Tried> tried = fit_candidates(c, chain.states.back(), live);
-      if (chain.rounds.empty() && first_round.empty())
+      if (shown)
         for (const auto& t : tried) first_round.push_back(t.fit);
       // Among those that earn their place, the largest gain (the lowest validation error); one
       // with a parameter on an edge only when no other earns its place.

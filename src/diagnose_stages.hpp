@@ -21,6 +21,7 @@
 // stage, drawn from a generator of its own, seeded by LgOptions::seed).
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <span>
 #include <string>
@@ -81,6 +82,14 @@ struct Context {
   /// it leaves nothing for a piece to explain, so no candidate on it passes rule (c).
   double validation_floor_with_sampling() const {
     return validation_floor_percent + validation_measurement_percent;
+  }
+  /// Whether a model of estimation RSS `rss` is within three standard deviations of the noise's
+  /// RSS (sqrt(2 N) sigma^2 each) of the estimation record's floor, the noise's plus what the
+  /// displacement's sampling puts there: no drop from it is real (rule b).
+  bool estimation_at_floor(double rss) const {
+    return floor_rss > 0.0 &&
+           rss <= floor_rss * (1.0 + 3.0 * std::sqrt(2.0 / static_cast<double>(n))) +
+                      estimation_measurement_rss;
   }
 };
 
