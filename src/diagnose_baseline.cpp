@@ -2,7 +2,6 @@
 // a LuGre baseline and its one candidate, nonlocal-memory.
 #include <chrono>
 #include <cmath>
-#include <cstdint>
 #include <limits>
 
 #include "diagnose_stages.hpp"
@@ -60,9 +59,6 @@ std::vector<double> slip_force(const State& s, std::span<const double> initial, 
   return out;
 }
 
-// The seed of replica j of the sensor floor.
-std::uint64_t sensor_replica_seed(std::size_t j) { return 0x9e3779b97f4a7c15ULL * (j + 1); }
-
 // The record refined to four steps per sample (stepped_finely).  Made without a Record (no force,
 // no conditioning): at 10^6 samples the fine record and the whole runs on it (force, regime,
 // velocity, acceleration) were a quarter of the diagnosis's memory, and only the force at the
@@ -105,7 +101,7 @@ DerivativeWindows fine_grid_windows(const Record& r) {
 void warm_sensor_replica(const Record& r, std::size_t j) {
   if (r.size() < 8) return;
   Record replica;
-  remeasured_replica(r, sensor_replica_seed(j), replica,
+  remeasured_replica(r, replica_seed(j), replica,
                      estimate_displacement_resolution(r.measured()), nullptr);
 }
 
@@ -156,7 +152,7 @@ double measurement_floor_rss(const State& s, const std::vector<double>& rho, con
     }
     Record replica;
     DerivativeWindows rw;
-    if (!remeasured_replica(r, sensor_replica_seed(j), replica, sensor, &rw)) return;
+    if (!remeasured_replica(r, replica_seed(j), replica, sensor, &rw)) return;
     const double sum = squared_change(slip_force(s, initial, replica, rw));
     if (!std::isfinite(sum)) return;
     sums[j] = sum;

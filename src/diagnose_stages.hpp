@@ -137,7 +137,7 @@ void warm_sensor_replica(const Record& r, std::size_t j);
 // Replicas of the sensor floor.  Its relative sampling error is about sqrt(2 / 8) = 0.5 for a
 // floor made by a few stiff operators at a few reversals, less where many samples contribute: a
 // floor, unlike a standard error, only needs its order of magnitude.  The seeds are those of the
-// covariance's replicas (extension_families.hpp); with an encoder those are made from the
+// covariance's replicas (replica_seed, signals.hpp); with an encoder those are made from the
 // smoothest motion within its quanta, not from the record, so their windows are chosen again.
 inline constexpr std::size_t kSensorReplicas = 8;
 

@@ -677,7 +677,7 @@ class ReplicaForces {
       const std::size_t j = next_++;
       const bool from_motion = !motion_force_.empty();
       if (!remeasured_replica(r_, from_motion ? *motion_ : r_.displacement,
-                              0x9e3779b97f4a7c15ULL * (j + 1), replica_, sensor_, &windows_)) {
+                              replica_seed(j), replica_, sensor_, &windows_)) {
         exhausted_ = true;
         break;
       }

@@ -185,6 +185,10 @@ std::vector<double> smoothest_motion_within_quanta(std::span<const double> time,
 /// tenth of it.
 bool remeasured_replica(const Record& record, std::uint64_t seed, Record& replica,
                         const Resolution& sensor, DerivativeWindows* windows = nullptr);
+/// The seed of replica j (j = 0, 1, ...) as the covariance's replicas and the diagnosis's sensor
+/// floor draw them: one sequence, so that a replica the one made has its windows remembered for
+/// the other.
+inline std::uint64_t replica_seed(std::size_t j) { return 0x9e3779b97f4a7c15ULL * (j + 1); }
 /// The same for another motion at the record's time stamps (`motion`, one value per sample, in
 /// place of the record's displacement): the smoothest motion within an encoder's quanta, without
 /// a copy of the record to hold it.
