@@ -38,14 +38,34 @@ Errors errors_with(const truth::Trace& t, const DerivativeWindows& w) {
   return {rms_error(v, t.velocity), rms_error(a, t.acceleration)};
 }
 
-// The rule against the best fixed window of the same estimator (every half width up to 120, both
+// The half widths the rule is judged against: every one up to 20, then steps of about 5 % up to
+// 120.  Every half width up to 120 cost three times as much (a window's cost grows with its
+// width); near its best a window's error is flat in the logarithm of its width.  Leaving widths
+// out can only make the best worse, so the reference is looser than the full grid: on the 72
+// traces below its best was within 0.7 % of the full grid's in velocity and within 5.3 % in
+// acceleration (2.5 % on the trace whose rule came closest to the bound, 1.48 times the full
+// grid's best; measured 2026-12-07).
+std::vector<std::size_t> reference_half_widths() {
+  std::vector<std::size_t> widths;
+  for (std::size_t m = 1; m <= 20; ++m) widths.push_back(m);
+  while (widths.back() < 120)
+    widths.push_back(std::min<std::size_t>(
+        120, std::max(widths.back() + 1,
+                      static_cast<std::size_t>(std::lround(1.05 * static_cast<double>(
+                                                               widths.back()))))));
+  return widths;
+}
+
+// The rule against the best fixed window of the same estimator (the half widths above, both
 // degrees).
 void expect_near_best(const truth::Trace& t, const std::string& what) {
   const DerivativeWindows w = choose_derivative_windows(t.time, t.position);
   const Errors rule = errors_with(t, w);
   Errors best{INFINITY, INFINITY};
+  static const std::vector<std::size_t> half_widths = reference_half_widths();
   for (std::size_t degree : {2u, 4u})
-    for (std::size_t m = degree / 2; m <= 120 && 2 * m + 1 < t.time.size(); ++m) {
+    for (std::size_t m : half_widths) {
+      if (m < degree / 2 || 2 * m + 1 >= t.time.size()) continue;
       DerivativeWindows fixed;
       fixed.velocity_half_width = fixed.acceleration_half_width = m;
       fixed.velocity_degree = fixed.acceleration_degree = degree;
