@@ -315,9 +315,12 @@ Json ExtendedFreeRun::to_json() const {
 Json pieces_to_json(const std::vector<ExtensionEstimate>& estimates) {
   Json pieces = Json::object();
   for (const auto& est : estimates) {
+    // A piece at a bound says so and keeps 0; one whose standard error could not be had (not
+    // estimable where the covariance is rank deficient) gets null, not a 0 that reads as exact.
     Json v = {{"value", est.value},
               {"unit", est.unit},
-              {"standard_error", est.standard_error},
+              {"standard_error",
+               est.available || est.at_bound ? Json(est.standard_error) : Json(nullptr)},
               {"at_bound", est.at_bound}};
     pieces[std::string(effect_name(est.effect))][est.name] = v;
   }

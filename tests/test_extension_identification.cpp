@@ -78,6 +78,27 @@ void expect_recovered(const IdentifiedModel& m, const std::string& effect, const
   EXPECT_TRUE(found);
 }
 
+
+// A piece's standard error in the JSON: a number when it has one, 0 beside at_bound when the piece
+// ended at a bound, and null when it could not be had (not estimable: a 0 there read as an exact
+// value, and the discovery study counted it only because it checks for one).
+TEST(ExtensionJson, APieceWithoutAStandardErrorIsNullNotZero) {
+  ExtensionEstimate with, bound, without;
+  with.effect = bound.effect = without.effect = Effect::position_dependence;
+  with.name = "wavelength";
+  bound.name = "phase";
+  without.name = "amplitude";
+  with.value = 2e-5, with.standard_error = 1e-7, with.available = true;
+  bound.value = 0.0, bound.at_bound = true;
+  without.value = 36.8, without.standard_error = 0.0, without.available = false;
+  const Json j = pieces_to_json({with, bound, without})["position-dependence"];
+  EXPECT_EQ(j["wavelength"]["standard_error"].get<double>(), 1e-7);
+  EXPECT_EQ(j["phase"]["standard_error"].get<double>(), 0.0);
+  EXPECT_TRUE(j["phase"]["at_bound"].get<bool>());
+  EXPECT_TRUE(j["amplitude"]["standard_error"].is_null());
+  EXPECT_EQ(j["amplitude"]["value"].get<double>(), 36.8);
+}
+
 TEST(ExtensionIdentification, ViscousOnMaxwellSlipIsRecovered) {
   const IdentifiedModel m = identify_model("maxwell-slip", record_with(Injected::viscous, 40.0),
                                            options({Effect::viscous}));
