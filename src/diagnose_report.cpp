@@ -247,13 +247,10 @@ void report(const Context& c, const Chain& chain, Diagnosis& dx) {
     dx.final_pieces = steps > 0 ? reports.back().pieces : report_at_origin(c, last).pieces;
   // The final model's pieces are what a user takes away: one without a standard error is said
   // (a study record, position-dependence beside a delay: the amplitude's s.e. was written as 0).
-  for (const ExtensionEstimate& est : dx.final_pieces)
-    if (!est.available && !est.at_bound)
-      dx.warnings.push_back("final model: no standard error for " +
-                            std::string(effect_name(est.effect)) + "." + est.name +
-                            ": it is not estimable from this record's covariance (it trades off "
-                            "with other parameters); its value stands, its uncertainty is "
-                            "unknown");
+  if (const std::string without = pieces_of_unknown_uncertainty(dx.final_pieces); !without.empty())
+    dx.warnings.push_back("final model: no standard error for " + without +
+                          ": not estimable from this record's covariance (it trades off with "
+                          "other parameters); the value stands, its uncertainty is unknown");
 }
 
 }  // namespace diagnose_detail

@@ -62,10 +62,7 @@ bool main_parameter(Effect e, std::string_view* name, double f0, double* null_va
 
 void note_rank_deficiency(ExtensionIdentification& res, bool rank_deficient) {
   if (!rank_deficient) return;
-  std::string without;
-  for (const auto& e : res.estimates)
-    if (!e.available && !e.at_bound)
-      without += (without.empty() ? "" : ", ") + std::string(effect_name(e.effect)) + "." + e.name;
+  const std::string without = friction::pieces_of_unknown_uncertainty(res.estimates);
   res.warnings.push_back(
       "the joint fit's covariance is rank deficient (some parameters trade off against each other "
       "on this record): " +
@@ -312,6 +309,14 @@ Json ExtendedFreeRun::to_json() const {
   return j;
 }
 
+std::string pieces_of_unknown_uncertainty(const std::vector<ExtensionEstimate>& estimates) {
+  std::string list;
+  for (const auto& e : estimates)
+    if (e.uncertainty_unknown())
+      list += (list.empty() ? "" : ", ") + std::string(effect_name(e.effect)) + "." + e.name;
+  return list;
+}
+
 Json pieces_to_json(const std::vector<ExtensionEstimate>& estimates) {
   Json pieces = Json::object();
   for (const auto& est : estimates) {
@@ -320,7 +325,7 @@ Json pieces_to_json(const std::vector<ExtensionEstimate>& estimates) {
     Json v = {{"value", est.value},
               {"unit", est.unit},
               {"standard_error",
-               est.available || est.at_bound ? Json(est.standard_error) : Json(nullptr)},
+               est.uncertainty_unknown() ? Json(nullptr) : Json(est.standard_error)},
               {"at_bound", est.at_bound}};
     pieces[std::string(effect_name(est.effect))][est.name] = v;
   }

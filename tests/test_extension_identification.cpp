@@ -97,6 +97,14 @@ TEST(ExtensionJson, APieceWithoutAStandardErrorIsNullNotZero) {
   EXPECT_TRUE(j["phase"]["at_bound"].get<bool>());
   EXPECT_TRUE(j["amplitude"]["standard_error"].is_null());
   EXPECT_EQ(j["amplitude"]["value"].get<double>(), 36.8);
+  // The list the warnings name: only the piece without a standard error and without a bound.
+  ExtensionEstimate lag_without = without;
+  lag_without.effect = Effect::frictional_lag, lag_without.name = "time_constant";
+  EXPECT_EQ(pieces_of_unknown_uncertainty({with, bound, without}),
+            "position-dependence.amplitude");
+  EXPECT_EQ(pieces_of_unknown_uncertainty({without, with, lag_without}),
+            "position-dependence.amplitude, frictional-lag.time_constant");
+  EXPECT_EQ(pieces_of_unknown_uncertainty({with, bound}), "");
 }
 
 TEST(ExtensionIdentification, ViscousOnMaxwellSlipIsRecovered) {

@@ -68,7 +68,16 @@ struct ExtensionEstimate {
   bool at_bound = false;
   bool available = false;           ///< has a standard error
   double lower95 = 0, upper95 = 0;  ///< 95 % interval (pieces are fitted linearly: symmetric)
+
+  /// Neither a standard error nor a bound to explain its absence: the parameter trades off with
+  /// others on the record (a rank-deficient covariance).  The documents write null for it and the
+  /// tool warns; at a bound the 0 beside at_bound says why.
+  bool uncertainty_unknown() const { return !available && !at_bound; }
 };
+
+/// "effect.name, effect.name, ..." of the estimates whose uncertainty_unknown(), in their order;
+/// empty when there is none.
+std::string pieces_of_unknown_uncertainty(const std::vector<ExtensionEstimate>& estimates);
 
 /// Residuals (F - Fhat) * scale of `model`'s free run on the record, from the state the model
 /// holds, handed to visit(k, residual_k) in sample order: the loop of every extension cost

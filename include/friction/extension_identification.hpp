@@ -213,7 +213,8 @@ struct ExtensionIdentification {
 };
 
 /// The pieces' estimates as the documents show them: {effect: {param: {value, unit,
-/// standard_error, at_bound}}} (standard_error 0 when not available).
+/// standard_error, at_bound}}}: standard_error null when its uncertainty is unknown
+/// (ExtensionEstimate::uncertainty_unknown), 0 beside at_bound true at a bound.
 Json pieces_to_json(const std::vector<ExtensionEstimate>& estimates);
 
 /// The section 7 names, comma-separated, for messages.
