@@ -804,11 +804,16 @@ inline PieceStart start_from_regression(Effect e, const RegressionSignals& s) {
 // started from the best point of a grid over its physical range, derived from the record; the
 // stiffnesses and the added terms (viscous, offset, mass) are solved by bounded least squares at
 // every point, so they need no start at all (extension_profile.cpp).  The ranges:
-//   stribeck             velocity 1 % to 100 % of the 95th-percentile sliding speed (9 points,
-//                        log), exponent 0.5-2.5 (5), static 1.05-2.6 F0 (6);
+//   stribeck             velocity 1 % to 100 % of the 95th-percentile sliding speed (5 points,
+//                        log), exponent 0.5-2.5 (3), static 1.05-2.6 F0 (3);
 //   position-dependence  wavelength from 10 samples' travel to the whole travel (16, log; a third
-//                        of it missed a wavelength of 0.35 travel on a study record), phase (8),
+//                        of it missed a wavelength of 0.35 travel on a study record), phase (4),
 //                        amplitude 2-15 % of F0 (3);
+// Each point costs a bounded least-squares solve on the whole record, and the fit from the best
+// point does the rest.  The finer grids before (9 x 5 x 6 Stribeck points, 8 phases) made a
+// diagnosis 9-16 % slower on data/ and the bench records and found no better fits in the
+// discovery study (README, 7 December).  What a grid must keep is its ends: with the static axis
+// ending at 2.0 F0, a study record of Fs = 3 Fc lost its position-dependence.
 //   drift                +-(0.02-0.6) per duration (8) and 0;
 //   asymmetry            +-(0.05-0.3) (8);
 //   delay                +-0.1 of the shortest interval between reversals (21, linear): a
@@ -867,14 +872,14 @@ inline std::vector<ProfileAxis> profile_axes(Effect e, const ProfileScales& s) {
   switch (e) {
     case Effect::stribeck: {
       std::vector<double> fs;
-      for (double r : {1.05, 1.15, 1.3, 1.6, 2.0, 2.6}) fs.push_back(r * f0);
-      return {{"stribeck_velocity", log_grid(0.01 * s.sliding_speed_95, s.sliding_speed_95, 9)},
-              {"stribeck_exponent", {0.5, 1.0, 1.5, 2.0, 2.5}},
+      for (double r : {1.05, 1.6, 2.6}) fs.push_back(r * f0);
+      return {{"stribeck_velocity", log_grid(0.01 * s.sliding_speed_95, s.sliding_speed_95, 5)},
+              {"stribeck_exponent", {0.5, 1.5, 2.5}},
               {"static", fs}};
     }
     case Effect::position_dependence: {
       std::vector<double> phase;
-      for (int i = 0; i < 8; ++i) phase.push_back(2 * M_PI * i / 8);
+      for (int i = 0; i < 4; ++i) phase.push_back(2 * M_PI * i / 4);
       return {{"wavelength", log_grid(10 * s.sample_travel, s.travel, 16)},
               {"phase", phase},
               {"amplitude", {0.02 * f0, 0.06 * f0, 0.15 * f0}}};
