@@ -31,6 +31,7 @@
 #include "friction/lg.hpp"
 #include "friction/lugre.hpp"
 #include "friction/maxwell_slip.hpp"
+#include "friction/metrics.hpp"
 #include "friction/noise_colour.hpp"
 #include "friction/record.hpp"
 #include "friction/signals.hpp"
@@ -95,6 +96,26 @@ struct SlipFamily {
     return b;
   }
   std::vector<int> held(const std::vector<double>&) const { return {}; }
+  // The columns (log k_i, log Delta_i) of the operators whose whole force is below what the record
+  // resolves, k_i Delta_i < `resolution` (report_joint_fit).  A profile's bounded solve leaves an
+  // operator it wants at zero stiffness with a negligible one (it is fitted in log k), and the
+  // joint fit keeps it there.  Such an operator is at its zero-stiffness bound: its columns are
+  // held in the covariance, as a piece's at a bound.  Left free, it traded off with an operator
+  // of the same threshold, and F0's gradient, a negligible k_i Delta_i on its columns but not in
+  // the covariance's scaled coordinates, failed the estimability test: a study record (discovery
+  // study, seed 11377216255824524248, position-dependence+delay; k = 1.3e-9 of the largest) gave
+  // the amplitude in newtons no standard error.
+  std::vector<int> unresolved(const std::vector<double>& theta, double resolution) const {
+    std::vector<int> u;
+    if (!free_base) return u;
+    const std::size_t m = p.size();
+    for (std::size_t i = 0; i < m; ++i)
+      if (std::exp(theta[i] + theta[m + i]) < resolution) {
+        u.push_back(static_cast<int>(i));
+        u.push_back(static_cast<int>(m + i));
+      }
+    return u;
+  }
   // F0 of the base at block 0's base part (the fitted base's own, `p`, when it is held).
   double sliding_force(const double* theta) const {
     if (!free_base) return p.sliding_force();
@@ -168,6 +189,8 @@ struct DnlrxFamily {
     threshold_box(b, r, p.threshold);
     return b;
   }
+  // Its operators carry no stiffness of their own (the spring filter does).
+  std::vector<int> unresolved(const std::vector<double>&, double) const { return {}; }
   std::vector<int> held(const std::vector<double>& theta) const {
     std::vector<int> h;
     for (std::size_t c = 0; c < filter_count(); ++c)
@@ -257,6 +280,7 @@ struct LuGreFamily {
     }
     return b;
   }
+  std::vector<int> unresolved(const std::vector<double>&, double) const { return {}; }
   std::vector<int> held(const std::vector<double>& theta) const {
     std::vector<int> h;
     for (int j : {1, 2})
@@ -1007,8 +1031,16 @@ JointReport report_joint_fit(const Record& r, const Family& family,
   std::vector<char> free_theta(theta.size(), 1);
   for (std::size_t c = 0; c < theta.size(); ++c)
     if (at_bound(theta[c], box.lower[c]) || at_bound(theta[c], box.upper[c])) free_theta[c] = 0;
-  if (nb > 0)
+  if (nb > 0) {
     for (int h : family.held(base_theta)) free_theta[static_cast<std::size_t>(h)] = 0;
+    // What the record resolves: a column of norm below the noise's sigma changes the fit's RSS by
+    // less than one sample's noise variance; an operator's force column has norm at most
+    // k_i Delta_i sqrt(N).
+    const double resolution =
+        estimate_white_noise_sigma(r.force) / std::sqrt(static_cast<double>(r.size()));
+    for (int h : family.unresolved(base_theta, resolution))
+      free_theta[static_cast<std::size_t>(h)] = 0;
+  }
   {  // derived parameters (effect_table.hpp, held_in_fit) have no column of their own
     std::size_t c = nb;
     ext.for_each_parameter([&](Effect e, std::string_view name, const double&) {

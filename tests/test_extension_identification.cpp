@@ -186,6 +186,56 @@ TEST(ExtensionIdentification, ARankDeficientBaseKeepsThePiecesStandardErrors) {
   EXPECT_EQ(with_error, 2 * (truth.k.size() - 1));
 }
 
+// An operator the fit left at a negligible stiffness beside one of (nearly) the same threshold: a
+// profile's bounded solve gives an operator it wants at zero 1e-9 of the largest stiffness, which
+// the joint fit, in log k, keeps.  Its force is below anything the record resolves, so it is at
+// its zero-stiffness bound, held in the covariance, and every other standard error is the one of
+// the fit without it.  Left free, it traded off with its neighbour and the amplitude in newtons,
+// which carries F0's gradient, lost its standard error (discovery study, seed
+// 11377216255824524248, position-dependence+delay: k = 1.3e-9 of the largest).
+TEST(ExtensionIdentification, AnOperatorBelowTheRecordsResolutionIsAtItsZeroBound) {
+  constexpr double kAmplitude = 0.05;  // N, at 40 um and phase 0.5 (diagnose_support.hpp)
+  const Record r = record_with(Injected::position, kAmplitude);
+  const testing::SlipSystem truth;
+  ExtendedSlipFit alone;
+  alone.base = {truth.k, truth.delta};
+  alone.rho.assign(truth.k.size(), 0.0);
+  alone.ext.position_dependence = PositionExtension<double>{kAmplitude, 40e-6, 0.5};
+  alone.ext.reference_force = alone.base.sliding_force();
+  alone.ok = true;
+  ExtendedSlipFit beside = alone;
+  double largest = 0;
+  for (double k : truth.k) largest = std::max(largest, k);
+  beside.base.stiffness.push_back(1e-9 * largest);
+  beside.base.threshold.push_back(truth.delta[1] * (1 + 1.7e-4));
+  beside.rho.push_back(0.4);  // not its neighbour's state: their columns differ at the start
+
+  const ExtendedSlipReport without = report_extended_slip(r, alone);
+  const ExtendedSlipReport with = report_extended_slip(r, beside);
+  ASSERT_EQ(with.pieces.size(), without.pieces.size());
+  for (std::size_t i = 0; i < without.pieces.size(); ++i) {
+    const ExtensionEstimate& a = without.pieces[i];
+    const ExtensionEstimate& b = with.pieces[i];
+    ASSERT_TRUE(a.available) << a.name;
+    ASSERT_TRUE(b.available) << "no standard error for " << b.name << " beside the operator";
+    EXPECT_NEAR(b.standard_error, a.standard_error, 1e-3 * a.standard_error) << b.name;
+    // The truth within 4 standard errors: the report is at the true parameters.
+    const double true_value = b.name == "amplitude" ? kAmplitude : b.name == "wavelength" ? 40e-6 : 0.5;
+    EXPECT_LT(std::abs(b.value - true_value), 4 * b.standard_error) << b.name;
+  }
+  // The operator's stiffness and threshold have none (at the bound); the others keep theirs.
+  const std::size_t m = truth.k.size();
+  ASSERT_EQ(with.base.size(), 2 * (m + 1));
+  EXPECT_EQ(with.base[m].standard_error, 0.0) << with.base[m].name;
+  EXPECT_EQ(with.base[2 * m + 1].standard_error, 0.0) << with.base[2 * m + 1].name;
+  for (std::size_t i = 0; i < m; ++i) {
+    EXPECT_NEAR(with.base[i].standard_error, without.base[i].standard_error,
+                1e-3 * without.base[i].standard_error) << with.base[i].name;
+    EXPECT_NEAR(with.base[m + 1 + i].standard_error, without.base[m + i].standard_error,
+                1e-3 * without.base[m + i].standard_error) << with.base[m + 1 + i].name;
+  }
+}
+
 // An operator that never slips in the record adds k (delta0 + x - x0): its initial deflection
 // delta0 and an offset make the same constant force, and the record cannot split them.  What it
 // does know is that delta0 kept the operator from slipping, so every offset it admits lies in a
