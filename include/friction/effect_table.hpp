@@ -807,13 +807,15 @@ inline PieceStart start_from_regression(Effect e, const RegressionSignals& s) {
 //   stribeck             velocity 1 % to 100 % of the 95th-percentile sliding speed (5 points,
 //                        log), exponent 0.5-2.5 (3), static 1.05-2.6 F0 (3);
 //   position-dependence  wavelength from 10 samples' travel to the whole travel (16, log; a third
-//                        of it missed a wavelength of 0.35 travel on a study record), phase (4),
+//                        of it missed a wavelength of 0.35 travel on a study record), phase (8),
 //                        amplitude 2-15 % of F0 (3);
 // Each point costs a bounded least-squares solve on the whole record, and the fit from the best
-// point does the rest.  The finer grids before (9 x 5 x 6 Stribeck points, 8 phases) made a
-// diagnosis 9-16 % slower on data/ and the bench records and found no better fits in the
+// point does the rest.  The finer Stribeck grid before (9 x 5 x 6 points) made a diagnosis 9-16 %
+// slower on data/ and the bench records (with 4 phases as well) and found no better fits in the
 // discovery study (README, 7 December).  What a grid must keep is its ends: with the static axis
-// ending at 2.0 F0, a study record of Fs = 3 Fc lost its position-dependence.
+// ending at 2.0 F0, a study record of Fs = 3 Fc lost its position-dependence.  And 4 phases were
+// too few: a study record (viscous+position-dependence, seed 8182649501330643343) started from a
+// wrong wavelength and ended 9 standard errors from the true one, 33 times the error of 8 phases.
 //   drift                +-(0.02-0.6) per duration (8) and 0;
 //   asymmetry            +-(0.05-0.3) (8);
 //   delay                +-0.1 of the shortest interval between reversals (21, linear): a
@@ -879,7 +881,7 @@ inline std::vector<ProfileAxis> profile_axes(Effect e, const ProfileScales& s) {
     }
     case Effect::position_dependence: {
       std::vector<double> phase;
-      for (int i = 0; i < 4; ++i) phase.push_back(2 * M_PI * i / 4);
+      for (int i = 0; i < 8; ++i) phase.push_back(2 * M_PI * i / 8);
       return {{"wavelength", log_grid(10 * s.sample_travel, s.travel, 16)},
               {"phase", phase},
               {"amplitude", {0.02 * f0, 0.06 * f0, 0.15 * f0}}};
