@@ -809,13 +809,6 @@ inline PieceStart start_from_regression(Effect e, const RegressionSignals& s) {
 //   position-dependence  wavelength from 10 samples' travel to the whole travel (16, log; a third
 //                        of it missed a wavelength of 0.35 travel on a study record), phase (8),
 //                        amplitude 2-15 % of F0 (3);
-// Each point costs a bounded least-squares solve on the whole record, and the fit from the best
-// point does the rest.  The finer Stribeck grid before (9 x 5 x 6 points) made a diagnosis 9-16 %
-// slower on data/ and the bench records (with 4 phases as well) and found no better fits in the
-// discovery study (README, 7 December).  What a grid must keep is its ends: with the static axis
-// ending at 2.0 F0, a study record of Fs = 3 Fc lost its position-dependence.  And 4 phases were
-// too few: a study record (viscous+position-dependence, seed 8182649501330643343) started from a
-// wrong wavelength and ended 9 standard errors from the true one, 33 times the error of 8 phases.
 //   drift                +-(0.02-0.6) per duration (8) and 0;
 //   asymmetry            +-(0.05-0.3) (8);
 //   delay                +-0.1 of the shortest interval between reversals (21, linear): a
@@ -825,6 +818,13 @@ inline PieceStart start_from_regression(Effect e, const RegressionSignals& s) {
 //                        with the reference force held, (Delta, mu) and (2 Delta, mu/2) give the
 //                        same forces -- mu is not identifiable as a free parameter;
 //   viscous, offset, inertia  none (solved by projection).
+// Each point costs a bounded least-squares solve on the whole record, and the fit from the best
+// point does the rest.  The Stribeck grid had 9 x 5 x 6 points; the 45 above found the same fits
+// in the discovery study (README, 7 December).  What a grid must keep is its ends: with the static
+// axis ending at 2.0 F0, a study record of Fs = 3 Fc lost its position-dependence.  Nor may the
+// phases go below 8: with 4, a study record (viscous+position-dependence, seed
+// 8182649501330643343) started from a wrong wavelength and ended 9 standard errors from the true
+// one, at 33 times the validation error.
 
 /// The scales of a record the profiles' ranges follow from.
 struct ProfileScales {
