@@ -55,18 +55,36 @@ inline double resolved_function_tolerance(std::size_t residuals) {
 //    error.  LM crawls like this from kink to kink of the cost near a minimum (a polish on the
 //    multisine bench record spent 60 of its 101 iterations gaining 0.2 sigma^2 in all), and
 //    Ceres' relative function tolerance, which knows nothing of the noise, does not stop it.
+// With `settled_trust_region` (a diagnosis candidate's fit: diagnose.hpp, section 3) a Ceres
+// search is judged hopeless only over a window in which its trust region shrank by less than a
+// factor 4.  Levenberg-Marquardt halves the region after a step whose decrease the local model
+// did not predict (ratio near 0) and keeps it after one it predicted to about a quarter or better,
+// so a region still collapsing is a search that has not yet found its descent, and its pace says
+// nothing of what follows: a Stribeck curve on a study record's offset model (seed 20261207,
+// stribeck+offset) crawled 601.2 -> 599.2 over its first ten iterations as its region fell from
+// 1e4 to 11, then sped up and ended below the RSS the rules asked for.  A crawl along a valley
+// keeps its region (the position term of data/'s third round: 2.7e4 -> 1.7e4 over ten
+// iterations, 2.2209 -> 2.2208 of a target 2.118).
 class HopelessSearch final : public ceres::IterationCallback {
  public:
   static constexpr std::size_t kWindow = 10;
-  HopelessSearch(double target, double noise_cost, int max_iterations)
-      : target_(target), noise_cost_(noise_cost), max_iterations_(max_iterations) {}
+  static constexpr double kSettledShrink = 4.0;
+  HopelessSearch(double target, double noise_cost, int max_iterations,
+                 bool settled_trust_region = false)
+      : target_(target),
+        noise_cost_(noise_cost),
+        max_iterations_(max_iterations),
+        settled_trust_region_(settled_trust_region) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
-    return keep_going(it.cost) ? ceres::SOLVER_CONTINUE : ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    return keep_going(it.cost, it.trust_region_radius) ? ceres::SOLVER_CONTINUE
+                                                       : ceres::SOLVER_TERMINATE_SUCCESSFULLY;
   }
-  // `cost`: the search's cost [0.5 RSS] after its next iteration (or at its start).
-  bool keep_going(double cost) {
+  // `cost`: the search's cost [0.5 RSS] after its next iteration (or at its start); `radius`: its
+  // trust region's then (read with settled_trust_region only).
+  bool keep_going(double cost, double radius = 0.0) {
     const double best = best_.empty() ? cost : std::min(best_.back(), cost);
     best_.push_back(best);
+    radius_.push_back(radius);
     const std::size_t k = best_.size() - 1;
     if (k < kWindow) return true;
     const double pace = (best_[k - kWindow] - best) / static_cast<double>(kWindow);
@@ -75,6 +93,7 @@ class HopelessSearch final : public ceres::IterationCallback {
       return false;
     }
     if (!std::isfinite(target_) || best <= target_) return true;
+    if (settled_trust_region_ && !(radius_[k] * kSettledShrink > radius_[k - kWindow])) return true;
     const double left = static_cast<double>(std::max(0, max_iterations_ - static_cast<int>(k)));
     if (best - target_ <= left * pace) return true;
     stopped_ = true;
@@ -86,7 +105,8 @@ class HopelessSearch final : public ceres::IterationCallback {
  private:
   double target_, noise_cost_;
   int max_iterations_;
-  std::vector<double> best_;
+  bool settled_trust_region_;
+  std::vector<double> best_, radius_;
   bool stopped_ = false, converged_ = false;
 };
 

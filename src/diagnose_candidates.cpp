@@ -111,11 +111,31 @@ void judge_candidate(const Context& c, const State& s, Effect e, std::size_t ext
     t.fit.validation_percent = extended_validation_percent(t.result.base, t.result.ext, c.val);
   t.fit.verdict = accept(c, s.rss, t.result.rss, t.fit.extra_parameters, s.validation,
                          t.fit.validation_percent, phi);
+  t.fit.verdict.stopped_short = t.stopped;
   for (const auto& [effect, name] : t.result.at_bound)
     if (effect == e) t.fit.verdict.at_bound = name;
   t.fit.earns_place = t.fit.verdict.earns_place();
   t.fit.delta_bic = t.fit.verdict.delta_bic;
   t.fit.required_drop = t.fit.verdict.required;
+}
+
+// The least drop rule (b) asks of a candidate with p extra numbers on a model at rss0: its noise
+// part at the white-noise variance (coloured noise and a larger residual variance only ask more).
+double least_required_drop(const Context& c, double rss0, std::size_t p) {
+  return std::max({chi2_999(p) * c.sigma * c.sigma,
+                   c.options.min_excess_share * std::max(rss0 - c.floor_rss, 0.0),
+                   operator_reference(c, rss0)});
+}
+
+// The largest estimation RSS with which a candidate with p extra numbers on s could pass rules
+// (a) and (b) (header comment of diagnose.hpp, section 3): below RSS0 - least_required_drop, and
+// below RSS0 exp(-p ln N / N), where BIC on all N samples falls (on fewer effective samples,
+// coloured noise, it asks more).
+double candidate_target(const Context& c, const State& s, std::size_t p) {
+  if (!c.options.stop_hopeless_candidates) return std::numeric_limits<double>::infinity();
+  const double n = static_cast<double>(c.n);
+  const double bic_bound = s.rss * std::exp(-static_cast<double>(p) * std::log(n) / n);
+  return std::min(bic_bound, s.rss - least_required_drop(c, s.rss, p));
 }
 
 // Effect e's joint fit on top of s (no verdict yet); false when it threw (t says why).
@@ -140,18 +160,24 @@ bool fit_candidate_only(const Context& c, const State& s, Effect e, const Residu
     for (const auto& [edge_effect, name] : s.at_bound)
       if (edge_effect != e && s.ext.has(edge_effect)) edges.push_back(edge_effect);
     std::vector<ExtendedSlipFit> fits(1 + edges.size());
+    std::vector<char> stopped(fits.size(), 0);
     detail::parallel_for(fits.size(), threads, [&](std::size_t i) {
       const ProfiledStart q =
           i == 0 ? p
                  : profile_start(c.est, p.base, s.rho, level, p.ext, edges[i - 1], c.windows,
                                  c.scales);
-      fits[i] = fit_extended_slip(
+      bool stopped_early = false;
+      fits[i] = extension_detail::fit_extended_slip_within_reach(
           c.est, q.base, carried_state(c.est, s.base, s.ext, s.rho, q.base, q.ext, &c.windows),
-          q.ext, false, c.options.max_iterations);
+          q.ext, false, c.options.max_iterations,
+          candidate_target(c, s, extra_parameters(q.ext, s.ext)), &stopped_early, true);
+      stopped[i] = stopped_early;
     });
-    t.result = std::move(fits[0]);
+    std::size_t chosen = 0;
     for (std::size_t i = 1; i < fits.size(); ++i)
-      if (fits[i].ok && (!t.result.ok || fits[i].rss < t.result.rss)) t.result = fits[i];
+      if (fits[i].ok && (!fits[chosen].ok || fits[i].rss < fits[chosen].rss)) chosen = i;
+    t.result = std::move(fits[chosen]);
+    t.stopped = stopped[chosen] != 0;
   } catch (const std::exception& ex) {
     t.fit.verdict.fitted = false;
     t.fit.verdict.failure = ex.what();

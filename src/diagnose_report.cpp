@@ -285,6 +285,9 @@ std::string Verdict::to_text() const {
       s << " (what one more operator buys: the baseline may be short of operators)";
     s << "; ";
   }
+  if (stopped_short)
+    s << "its fit was stopped where, at its pace, it could no longer pass rules (a) and (b) (the "
+      << "figures are where it stopped); ";
   switch (validation) {
     case Validation::not_evaluated:
       s << "(validation not evaluated)";

@@ -159,6 +159,7 @@ ResidualEvidence gather_evidence(const MaxwellSlipParameters<double>& base,
 struct Tried {
   CandidateFit fit;
   ExtendedSlipFit result;
+  bool stopped = false;  ///< result's fit stopped early (candidate_target: it cannot pass)
 };
 
 /// Effect e fitted on top of state s as a candidate of a round is (evidence, profile, fit, rules).

@@ -325,7 +325,7 @@ ExtendedSlipFit fit_extended_slip(const Record& r, const MaxwellSlipParameters<d
 ExtendedSlipFit extension_detail::fit_extended_slip_within_reach(
     const Record& r, const MaxwellSlipParameters<double>& base0, const std::vector<double>& rho0,
     const ExtensionParameters<double>& ext0, bool fix_theta, int max_iterations,
-    double target_rss) {
+    double target_rss, bool* stopped, bool settled_trust_region) {
   const detail::SubnormalsFlushed subnormals_flushed;  // subnormals.hpp
   const std::size_t m = base0.size();
   std::vector<double> theta;
@@ -411,10 +411,11 @@ ExtendedSlipFit extension_detail::fit_extended_slip_within_reach(
   // run to the same tolerance whatever its noise.
   const double residual_scale = rms > 0 ? 1.0 / rms : 1.0;
   detail::HopelessSearch hopeless(0.5 * target_rss * residual_scale * residual_scale, 0.0,
-                                  max_iterations);
+                                  max_iterations, settled_trust_region);
   if (std::isfinite(target_rss)) options.callbacks.push_back(&hopeless);
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
+  if (stopped) *stopped = hopeless.stopped();
 
   ExtendedSlipFit out;
   out.base.stiffness.resize(m);

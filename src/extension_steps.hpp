@@ -43,13 +43,17 @@ void judge_evidence(ExtensionIdentification& res, const std::vector<Effect>& eff
 /// fit_extended_slip, stopped early when it cannot end below `target_rss` [N^2]: at the pace of
 /// its last iterations (detail::HopelessSearch, bounded_solver.hpp) its remaining budget would not
 /// get it there.  A stopped fit returns where it stopped (ok, its RSS above the target).  Infinity:
-/// fit_extended_slip.  For a fit whose only use is to beat a known RSS: the restart's.
+/// fit_extended_slip.  For a fit whose only use is to beat a known RSS: the restart's, and a
+/// diagnosis candidate's (the RSS the acceptance rules could pass).  `stopped`, when given, says
+/// whether it stopped early; `settled_trust_region`: judged only over iterations in which its
+/// trust region settled (HopelessSearch).
 ExtendedSlipFit fit_extended_slip_within_reach(const Record& r,
                                                const MaxwellSlipParameters<double>& base0,
                                                const std::vector<double>& rho0,
                                                const ExtensionParameters<double>& ext0,
                                                bool fix_theta, int max_iterations,
-                                               double target_rss);
+                                               double target_rss, bool* stopped = nullptr,
+                                               bool settled_trust_region = false);
 
 /// The restart (section 1): NLR (order selected again) on the force without the pieces, the joint
 /// fit from that base; the fit with the lower BIC is returned (`restarted` says which), then

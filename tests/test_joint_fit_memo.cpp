@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "../src/bounded_solver.hpp"
 #include "../src/extension_steps.hpp"
 #include "../src/joint_fit_memo.hpp"
 #include "diagnose_support.hpp"
@@ -149,14 +150,44 @@ TEST(JointFitMemo, AFitThatCannotReachItsTargetStopsEarlyAndOneThatReachesItIsTh
   const ExtendedSlipFit start = fit_extended_slip(r, base, rho, ext, true, 0);
   ASSERT_GT(start.rss, 2.0 * whole.rss) << "the start must leave the fit something to do";
   // A target half of what the fit reaches: the fit stops on its way, above where it would end.
+  bool was_stopped = false;
   const ExtendedSlipFit stopped = extension_detail::fit_extended_slip_within_reach(
-      r, base, rho, ext, false, iterations, 0.5 * whole.rss);
+      r, base, rho, ext, false, iterations, 0.5 * whole.rss, &was_stopped);
   ASSERT_TRUE(stopped.ok);
   EXPECT_GT(stopped.rss, whole.rss);
+  EXPECT_TRUE(was_stopped);
   // Reached: the callback only watches, so the fit is the whole one, bit for bit.
-  expect_same_fit(extension_detail::fit_extended_slip_within_reach(r, base, rho, ext, false,
-                                                                   iterations, 1.05 * whole.rss),
+  expect_same_fit(extension_detail::fit_extended_slip_within_reach(
+                      r, base, rho, ext, false, iterations, 1.05 * whole.rss, &was_stopped),
                   whole, "a target reached");
+  EXPECT_FALSE(was_stopped);
+}
+
+// The stop's rule on a crawl (bounded_solver.hpp): a cost falling 0.1 per iteration from 200
+// towards a target of 100 with 60 iterations allowed cannot get there at that pace.  Without the
+// trust-region condition, or with a region that stays put, the search stops at the end of its
+// first window (its 10th iteration); with a region halved at every iteration (steps the local
+// model did not predict) it goes on to the end; with a region halved over the first 10 iterations
+// and kept after, it stops at the first window over which the region shrank by less than 4:
+// radius(k) = radius(10) and radius(k - 10) = 1e4 / 2^(k - 10) > 4 radius(10) while k < 19.
+TEST(HopelessSearch, ACrawlStopsOnlyOverAWindowInWhichItsTrustRegionSettled) {
+  const auto first_stop = [](bool settled, auto radius) {
+    detail::HopelessSearch h(100.0, 0.0, 60, settled);
+    for (int k = 0; k <= 60; ++k)
+      if (!h.keep_going(200.0 - 0.1 * k, radius(k))) return k;
+    return -1;
+  };
+  const auto constant = [](int) { return 1e4; };
+  const auto collapsing = [](int k) { return 1e4 / std::pow(2.0, k); };
+  const auto settling = [](int k) { return 1e4 / std::pow(2.0, std::min(k, 10)); };
+  EXPECT_EQ(first_stop(false, constant), 10);
+  EXPECT_EQ(first_stop(false, collapsing), 10);
+  EXPECT_EQ(first_stop(true, constant), 10);
+  EXPECT_EQ(first_stop(true, collapsing), -1);
+  EXPECT_EQ(first_stop(true, settling), 19);
+  // A search that keeps its region but is on its way: 2 per iteration reaches 100 in 50.
+  detail::HopelessSearch fast(100.0, 0.0, 60, true);
+  for (int k = 0; k <= 50; ++k) EXPECT_TRUE(fast.keep_going(200.0 - 2.0 * k, 1e4)) << k;
 }
 
 }  // namespace

@@ -35,6 +35,18 @@
 //    converted to the model's own F0 at the end.  `frictional-lag` is a lag of the velocity that
 //    the viscous or Stribeck piece sees: without one of them it is fitted together with a viscous
 //    piece.
+//    A candidate's fit stops early when, at the pace of its last ten iterations, those it has
+//    left would not take its RSS below the largest RSS1 that could pass rules (a) and (b) of
+//    section 4: RSS0 exp(-p ln N / N), and RSS0 minus the least drop (b) asks (its noise part at
+//    the white-noise variance, which coloured noise only raises).  Such a candidate fails the
+//    rules; its verdict says that it stopped, and its figures are where it stopped.  The pace is
+//    an extrapolation, not a bound, so it is only read over ten iterations in which the fit's
+//    trust region settled (shrank by less than 4; bounded_solver.hpp, HopelessSearch): a region
+//    still collapsing is a search that has not yet found its descent.  Judged on any ten
+//    iterations, a Stribeck curve on a study record's offset model was stopped that would have
+//    passed the rules (seed 20261207, stribeck+offset, which then named the offset alone).  On
+//    data/ the position term of the third round ran to the 60 iterations allowed (1.2 of the
+//    diagnosis's 5.9 s) and now stops after 12.  `stop_hopeless_candidates` switches it off.
 //
 // 4. Acceptance rule.  With N estimation samples, RSS0 the current model's estimation RSS, RSS1
 //    the candidate's, p its extra parameters, sigma the white-noise estimate of the force
@@ -224,6 +236,10 @@ struct DiagnoseOptions {
   /// Kass & Raftery 1995 scale; section 5 of the header).
   double ambiguity_evidence = 10.0;
   int max_iterations = 60;  ///< Ceres iterations per fit
+  /// A candidate's fit stops once it can no longer reach what rules (a) and (b) ask (section 3);
+  /// false: every candidate's fit runs to its minimum (slower; only the figures of candidates
+  /// that fail those rules differ).
+  bool stop_hopeless_candidates = true;
   bool backward_pass = true;
   /// The candidates of a round are independent fits of const inputs: they run on this many
   /// threads (0: std::thread::hardware_concurrency()), each writing its own slot, so the result
@@ -297,6 +313,10 @@ struct Verdict {
   /// beside it runs to an edge; diagnose.cpp, forward_pass).
   std::string at_bound;
   bool operator_limited = false;  ///< (b) failed only on what one more operator buys
+  /// The candidate's fit was stopped early: at the pace of its last iterations it could not have
+  /// reached what rules (a) and (b) ask (section 3).  It fails them; its figures are where it
+  /// stopped, not at a minimum.
+  bool stopped_short = false;
   /// (b) the current model's estimation RSS is within the force noise's spread of the record's
   /// floor (noise and the displacement's sampling): nothing above it for any drop to be real.
   bool estimation_at_floor = false;
