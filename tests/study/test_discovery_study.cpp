@@ -873,11 +873,10 @@ TEST(DiscoveryStudy, ToldAStrongViscousTermTheRestartLeavesNoRelay) {
 // One record of the plan at `seed`, diagnosed in a directory of its own: it must be named
 // exactly, and every parameter of the named effects (the model-free ones only when asked) must
 // have a standard error that puts it within `max_z` of them.  Returns how many were judged.
-int expect_exact_with_parameters_within(std::uint64_t seed, const std::string& id,
-                                        const std::string& directory, double max_z,
-                                        bool model_free_only) {
-  const std::optional<RecordSpec> spec =
-      plan_record(seed, id, ValidationDesign::independent_design);
+int expect_exact_with_parameters_within(
+    std::uint64_t seed, const std::string& id, const std::string& directory, double max_z,
+    bool model_free_only, ValidationDesign design = ValidationDesign::independent_design) {
+  const std::optional<RecordSpec> spec = plan_record(seed, id, design);
   if (!spec) {
     ADD_FAILURE() << id << " is not in the plan of seed " << seed;
     return 0;
@@ -961,6 +960,20 @@ TEST(DiscoveryStudy, ALagOnAStribeckCurveIsNamedWithIt) {
   // lag_time, static, stribeck_velocity, stribeck_exponent
   EXPECT_EQ(expect_exact_with_parameters_within(424242, "frictional-lag+stribeck-2",
                                                 "lag-on-stribeck-regression", 3.0, false),
+            4);
+}
+
+// A regression test (label long, its own record): `stribeck+offset` of the main study at seed
+// 20261207.  After the offset, the Stribeck candidate's fit crawled over its first ten iterations
+// while its trust region collapsed (RSS 601.2 -> 599.2 in the fit's units, radius 1e4 -> 11), then
+// sped up and passed the rules.  Stopped on the pace of those ten iterations, as hopeless, it
+// left the record named {offset}; the pace is now read only over a settled trust region
+// (diagnose.hpp, section 3).  The record must be named exactly, and the four parameters (the
+// offset and the curve's three) must lie within 3 standard errors of the truth.  With the pace
+// read over any ten iterations (the CLI of that version) the test fails: {offset} alone.
+TEST(DiscoveryStudy, ACandidateWhoseTrustRegionStillCollapsesIsNotStopped) {
+  EXPECT_EQ(expect_exact_with_parameters_within(20261207, "stribeck+offset", "early-stop-regression",
+                                                3.0, false, ValidationDesign::another_realisation),
             4);
 }
 
