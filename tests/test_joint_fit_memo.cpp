@@ -169,7 +169,8 @@ TEST(JointFitMemo, AFitThatCannotReachItsTargetStopsEarlyAndOneThatReachesItIsTh
 // first window (its 10th iteration); with a region halved at every iteration (steps the local
 // model did not predict) it goes on to the end; with a region halved over the first 10 iterations
 // and kept after, it stops at the first window over which the region shrank by less than 4:
-// radius(k) = radius(10) and radius(k - 10) = 1e4 / 2^(k - 10) > 4 radius(10) while k < 19.
+// radius(k) = radius(10), and radius(k - 10) = 1e4 / 2^(k - 10) is at least 4 radius(10) up to
+// k = 18 (equal there).
 TEST(HopelessSearch, ACrawlStopsOnlyOverAWindowInWhichItsTrustRegionSettled) {
   const auto first_stop = [](bool settled, auto radius) {
     detail::HopelessSearch h(100.0, 0.0, 60, settled);
