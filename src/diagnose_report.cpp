@@ -136,9 +136,11 @@ Finding finding_head(const Context& c, const Chain& chain, std::size_t i) {
 }
 
 // One part of the finding of step i.  `rep`: receives the joint fit's report of states[i] (for
-// the last step, the final model's).
+// the last step, the final model's).  `baseline_evidence`: the evidence of states[0] on the
+// validation record when diagnose() has it already (an NLR baseline), or null.
 void make_finding_part(const Context& c, const Chain& chain, std::size_t i, double speed_span,
-                       FindingPart part, Finding& f, ExtendedSlipReport& rep) {
+                       FindingPart part, const ResidualEvidence* baseline_evidence, Finding& f,
+                       ExtendedSlipReport& rep) {
   const State& before = chain.states[i - 1];
   const State& after = chain.states[i];
   const Effect e = *f.effect;
@@ -160,10 +162,15 @@ void make_finding_part(const Context& c, const Chain& chain, std::size_t i, doub
       extended_validation_percent(after.base, after.ext, c.val, &f.validation_run_after);
       return;
     case FindingPart::evidence: {
-      // Evidence on the validation record, from the model before this finding.
-      const std::vector<double> rho_v =
-          estimate_relative_deflections(before.base, before.ext, c.val, nullptr);
-      f.residual = gather_evidence(before.base, before.ext, c.val, rho_v);
+      // Evidence on the validation record, from the model before this finding: for the first,
+      // the baseline's, which diagnose() has gathered already (0.16 s on data/).
+      if (i == 1 && baseline_evidence) {
+        f.residual = *baseline_evidence;
+      } else {
+        const std::vector<double> rho_v =
+            estimate_relative_deflections(before.base, before.ext, c.val, nullptr);
+        f.residual = gather_evidence(before.base, before.ext, c.val, rho_v);
+      }
       for (const auto& w : f.residual->effects)
         if (w.effect == e) f.signature_explained = w.explained;
       return;
@@ -232,7 +239,8 @@ void report(const Context& c, const Chain& chain, Diagnosis& dx) {
   detail::parallel_for(steps * kFindingParts, c.options.threads, [&](std::size_t t) {
     const std::size_t k = t % steps;
     make_finding_part(c, chain, k + 1, speed_span, static_cast<FindingPart>(t / steps),
-                      findings[k], reports[k]);
+                      c.options.baseline == "lugre" ? nullptr : &dx.baseline_evidence, findings[k],
+                      reports[k]);
   });
   for (Finding& f : findings) dx.findings.push_back(std::move(f));
   const State& last = chain.states.back();
