@@ -119,23 +119,28 @@ void judge_candidate(const Context& c, const State& s, Effect e, std::size_t ext
   t.fit.required_drop = t.fit.verdict.required;
 }
 
-// The least drop rule (b) asks of a candidate with p extra numbers on a model at rss0: its noise
-// part at the white-noise variance (coloured noise and a larger residual variance only ask more).
-double least_required_drop(const Context& c, double rss0, std::size_t p) {
-  return std::max({chi2_999(p) * c.sigma * c.sigma,
-                   c.options.min_excess_share * std::max(rss0 - c.floor_rss, 0.0),
-                   operator_reference(c, rss0)});
+// The three parts of the drop rule (b) asks (accept) of a candidate with p extra numbers on a
+// model at rss0, the noise part at the white-noise variance.  Coloured noise and a larger
+// residual variance only raise the noise part, so `least()` is the least drop the rule can ask.
+struct RuleBParts {
+  double white_noise, share, reference;
+  double least() const { return std::max({white_noise, share, reference}); }
+};
+RuleBParts rule_b_parts(const Context& c, double rss0, std::size_t p) {
+  return {chi2_999(p) * (c.sigma * c.sigma),
+          c.options.min_excess_share * std::max(rss0 - c.floor_rss, 0.0),
+          operator_reference(c, rss0)};
 }
 
 // The largest estimation RSS with which a candidate with p extra numbers on s could pass rules
-// (a) and (b) (header comment of diagnose.hpp, section 3): below RSS0 - least_required_drop, and
+// (a) and (b) (header comment of diagnose.hpp, section 3): below RSS0 minus the least drop, and
 // below RSS0 exp(-p ln N / N), where BIC on all N samples falls (on fewer effective samples,
 // coloured noise, it asks more).
 double candidate_target(const Context& c, const State& s, std::size_t p) {
   if (!c.options.stop_hopeless_candidates) return std::numeric_limits<double>::infinity();
   const double n = static_cast<double>(c.n);
   const double bic_bound = s.rss * std::exp(-static_cast<double>(p) * std::log(n) / n);
-  return std::min(bic_bound, s.rss - least_required_drop(c, s.rss, p));
+  return std::min(bic_bound, s.rss - rule_b_parts(c, s.rss, p).least());
 }
 
 // Effect e's joint fit on top of s (no verdict yet); false when it threw (t says why).
@@ -406,9 +411,9 @@ Verdict accept(const Context& c, double rss0, double rss1, std::size_t p, double
   const double inflation = (1 + phi) / (1 - phi);
   const double n_eff = std::max(static_cast<double>(c.n) / inflation, static_cast<double>(p) + 2);
   const double variance = std::max(c.sigma * c.sigma, rss1 / static_cast<double>(c.n));
-  const double noise = chi2_999(p) * (phi > 0 ? variance * inflation : c.sigma * c.sigma);
-  const double share = o.min_excess_share * std::max(rss0 - c.floor_rss, 0.0);
-  const double reference = operator_reference(c, rss0);
+  const RuleBParts parts = rule_b_parts(c, rss0, p);
+  const double noise = phi > 0 ? chi2_999(p) * (variance * inflation) : parts.white_noise;
+  const double share = parts.share, reference = parts.reference;
   Verdict v;
   v.residual_colour = phi;
   // BIC on the effective number of samples: n_eff ln(RSS1 / RSS0) + p ln(n_eff).

@@ -235,12 +235,13 @@ void report(const Context& c, const Chain& chain, Diagnosis& dx) {
   std::vector<Finding> findings(steps);
   for (std::size_t k = 0; k < steps; ++k) findings[k] = finding_head(c, chain, k + 1);
   std::vector<ExtendedSlipReport> reports(steps);
+  const ResidualEvidence* baseline_evidence =
+      c.options.baseline == "lugre" ? nullptr : &dx.baseline_evidence;
   // Task t: part t / steps (FindingPart's order is the slowest first) of finding t % steps.
   detail::parallel_for(steps * kFindingParts, c.options.threads, [&](std::size_t t) {
     const std::size_t k = t % steps;
     make_finding_part(c, chain, k + 1, speed_span, static_cast<FindingPart>(t / steps),
-                      c.options.baseline == "lugre" ? nullptr : &dx.baseline_evidence, findings[k],
-                      reports[k]);
+                      baseline_evidence, findings[k], reports[k]);
   });
   for (Finding& f : findings) dx.findings.push_back(std::move(f));
   const State& last = chain.states.back();
